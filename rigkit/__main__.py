@@ -1,0 +1,5 @@
+import sys
+
+from rigkit.cli import main
+
+sys.exit(main())
