@@ -11,7 +11,10 @@ from rigkit import __version__
 from rigkit.errors import RigkitError
 
 # Subcommand modules under rigkit.commands, in the order --help lists them.
-COMMANDS: tuple[str, ...] = ()
+COMMANDS: tuple[str, ...] = (
+    "synth",
+    "eval",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,153 @@
+"""Depth accuracy against ground truth, with the paper's metric (Table 1).
+
+A left pixel is judged when it has ground-truth depth and the right camera sees the
+same surface point (inside the right image and not occluded there, from the ground
+truth poses and the right view's own depth). A judged pixel without an estimate
+(NaN) counts as a miss: it is in the denominator but under no threshold.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rigkit.errors import InputError
+from rigkit.synth.io import SceneTruth, load_scene
+
+THRESHOLDS = (0.005, 0.01, 0.02, 0.03)
+OCCLUSION_TOLERANCE = 0.002  # relative depth difference that still counts as the same surface
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Scores of one depth map. Fractions in [0, 1]; bias is a signed fraction."""
+
+    scene: str
+    judged_pixels: int
+    density: float  # judged pixels with a finite estimate
+    under_0_5: float
+    under_1: float
+    under_2: float
+    under_3: float
+    median_bias: float  # median of (estimate - truth) / truth over estimated pixels
+    failed: bool = False
+    reason: str = ""
+
+
+def visible_in_right(truth: SceneTruth) -> np.ndarray:
+    """(H, W) bool: left pixels whose surface point the right camera also sees."""
+    left, right = truth.cameras["left"], truth.cameras["right"]
+    z = truth.depth("left").astype(np.float64)
+    v, u = np.mgrid[0 : left.height, 0 : left.width].astype(np.float64)
+    X = left.rays(u, v) * z[..., None] + left.C
+    uv, zr = right.project(X)
+    ui, vi = np.rint(uv[..., 0]), np.rint(uv[..., 1])
+    inside = (ui >= 0) & (ui < right.width) & (vi >= 0) & (vi < right.height) & np.isfinite(zr)
+    zr_seen = np.full(z.shape, np.nan)
+    depth_r = truth.depth("right")
+    zr_seen[inside] = depth_r[vi[inside].astype(int), ui[inside].astype(int)]
+    with np.errstate(invalid="ignore"):
+        same = np.abs(zr_seen - zr) <= OCCLUSION_TOLERANCE * zr
+    return inside & same & np.isfinite(z)
+
+
+def depth_metrics(
+    estimate: np.ndarray, truth: np.ndarray, judged: np.ndarray, scene: str = ""
+) -> Metrics:
+    """Score ``estimate`` against ``truth`` over the ``judged`` mask.
+
+    estimate, truth: (H, W) float, metres, z in the left camera (NaN = none);
+    judged: (H, W) bool.
+    """
+    if estimate.shape != truth.shape:
+        raise InputError(
+            f"{scene or 'estimate'}: depth map is {estimate.shape[1]}x{estimate.shape[0]}, "
+            f"ground truth is {truth.shape[1]}x{truth.shape[0]}"
+        )
+    n = int(judged.sum())
+    if n == 0:
+        raise InputError(f"{scene or 'scene'}: no pixel to judge (no overlap with the right view)")
+    est = estimate[judged].astype(np.float64)
+    gt = truth[judged].astype(np.float64)
+    has = np.isfinite(est)
+    rel = np.abs(est[has] - gt[has]) / gt[has]
+    fractions = [float(np.count_nonzero(rel < t)) / n for t in THRESHOLDS]
+    bias = float(np.median((est[has] - gt[has]) / gt[has])) if has.any() else math.nan
+    return Metrics(scene, n, float(has.mean()), *fractions, median_bias=bias)
+
+
+def failed_metrics(scene: str, reason: str) -> Metrics:
+    nan = math.nan
+    return Metrics(scene, 0, 0.0, nan, nan, nan, nan, nan, failed=True, reason=reason)
+
+
+def find_estimate(depth_dir: Path, scene_dir: Path) -> Path | None:
+    """``DEPTH_DIR/<scene>.npy`` or ``DEPTH_DIR/<scene>/depth.npy``, whichever exists."""
+    for cand in (depth_dir / f"{scene_dir.name}.npy", depth_dir / scene_dir.name / "depth.npy"):
+        if cand.is_file():
+            return cand
+    return None
+
+
+def evaluate_scene(scene_dir: Path, estimate_path: Path | None) -> Metrics:
+    name = scene_dir.name
+    truth = load_scene(scene_dir)
+    if estimate_path is None:
+        return failed_metrics(name, "no depth estimate")
+    try:
+        est = np.load(estimate_path)
+    except (OSError, ValueError) as exc:
+        return failed_metrics(name, f"unreadable estimate {estimate_path}: {exc}")
+    return depth_metrics(est, truth.depth("left"), visible_in_right(truth), name)
+
+
+def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path) -> list[Metrics]:
+    return [evaluate_scene(d, find_estimate(depth_dir, d)) for d in scene_dirs]
+
+
+def _pct(x: float) -> str:
+    return "   -  " if math.isnan(x) else f"{100 * x:6.2f}"
+
+
+def format_table(rows: Sequence[Metrics]) -> str:
+    """A table in the style of the paper's Table 1, one line per scene and a mean line."""
+    head = f"{'scene':<20} {'<0.5%':>7} {'<1%':>7} {'<2%':>7} {'<3%':>7} {'density':>8} {'bias%':>7}"
+    lines = [head, "-" * len(head)]
+    for m in rows:
+        if m.failed:
+            lines.append(f"{m.scene:<20} FAILED: {m.reason}")
+            continue
+        lines.append(
+            f"{m.scene:<20} {_pct(m.under_0_5):>7} {_pct(m.under_1):>7} {_pct(m.under_2):>7} "
+            f"{_pct(m.under_3):>7} {_pct(m.density):>8} {100 * m.median_bias:+7.3f}"
+        )
+    ok = [m for m in rows if not m.failed]
+    lines.append("-" * len(head))
+    if ok:
+        mean = {k: float(np.mean([getattr(m, k) for m in ok])) for k in _FIELDS}
+        worst1 = min(m.under_1 for m in ok)
+        lines.append(
+            f"{'mean':<20} {_pct(mean['under_0_5']):>7} {_pct(mean['under_1']):>7} "
+            f"{_pct(mean['under_2']):>7} {_pct(mean['under_3']):>7} {_pct(mean['density']):>8} "
+            f"{100 * mean['median_bias']:+7.3f}"
+        )
+        lines.append(f"{'worst scene <1%':<20} {_pct(worst1):>7}")
+    lines.append(f"failures: {len(rows) - len(ok)} of {len(rows)} scenes")
+    return "\n".join(lines)
+
+
+_FIELDS = ("under_0_5", "under_1", "under_2", "under_3", "density", "median_bias")
+
+
+def write_csv(rows: Sequence[Metrics], path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(asdict(rows[0]).keys()))
+        writer.writeheader()
+        for m in rows:
+            writer.writerow(asdict(m))

@@ -1,0 +1,167 @@
+"""Stage 3: removing the disparity ambiguity with the back camera.
+
+The paper (Prop. 2, Alg. 3) takes pairs of same-depth left/back matches and uses
+``m_l / m_b = (z + C_lb) / z``; the median over pairs gives the disparity offset. That
+ignores the back camera's rotation, which changes local image scale by ~1e-4 across a
+6 deg field - comparable to the signal ``C_lb / z`` ~ 0.7 % - and it uses only pairs.
+
+Here every left/back match is used at once, with exact geometry. For a trial yaw
+correction ``beta`` of the right camera, each matched left pixel is triangulated from
+the dense disparity (:mod:`rigkit.pipeline.depth`), giving a 3D point; the back
+camera - centre ``(x_b, y_b, -C_lb)`` with unknown sideways/vertical offset, unknown
+rotation, same focal length - must then see it where the match says. ``beta``, the
+back rotation and the offsets are fitted jointly by robust least squares. The depth
+scale enters through the back view's magnification; the rotation enters through its
+projective pattern, so the two do not trade off.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from rigkit.errors import PipelineError
+from rigkit.geometry import rotvec_to_matrix
+from rigkit.pipeline.depth import rectified_rays, triangulate_z
+from rigkit.pipeline.features import Matches
+from rigkit.pipeline.rectify import Rectification, scaling
+
+MIN_MATCHES = 30
+
+
+@dataclass(frozen=True)
+class Ambiguity:
+    """Result of ambiguity removal.
+
+    ``beta`` (rad): yaw correction of the right camera; ``offset_px`` ~ ``f * beta``,
+    the paper's disparity offset q at the image centre; ``offset_sigma_px``: its
+    standard error; ``back_rotvec`` (3,) left->back rotation (rad); ``back_offset_m``:
+    the back camera's fitted (x right, y down) offset from the left optical axis;
+    ``matches_used``/``inliers``: left/back matches with a disparity / within 1 px;
+    ``rms_px``: reprojection RMS of the inliers in the back view.
+    """
+
+    beta: float
+    offset_px: float
+    offset_sigma_px: float
+    back_rotvec: np.ndarray
+    back_offset_m: tuple[float, float]
+    matches_used: int
+    inliers: int
+    rms_px: float
+
+
+def _sample_disparity(
+    disparity: np.ndarray, scale: float, rect: Rectification, pts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rectified full-res column and disparity (full-res px) at left pixels ``pts``.
+    Disparities near depth edges (3x3 spread over 0.5 px) are NaN."""
+    q = pts @ rect.H_left[:, :2].T + rect.H_left[:, 2]
+    xr = q[:, :2] / q[:, 2:3]
+    xs = xr @ scaling(scale)[:2, :2].T + scaling(scale)[:2, 2]
+    m = xs.astype(np.float32).reshape(-1, 1, 2)
+    d = cv2.remap(disparity, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderValue=np.nan)
+    k = np.ones((3, 3), np.uint8)
+    filled = np.nan_to_num(disparity, nan=-1e6)
+    spread = cv2.dilate(filled, k) - cv2.erode(np.nan_to_num(disparity, nan=1e6), k)
+    s = cv2.remap(spread, m[..., 0], m[..., 1], cv2.INTER_NEAREST, borderValue=np.inf)
+    d = np.where(s.ravel() < 0.5, d.ravel(), np.nan)
+    return xr, d / scale
+
+
+def _points(rect: Rectification, xr: np.ndarray, d: np.ndarray, beta: float, c_lr: float):
+    """Left-frame 3D points (N, 3) of rectified positions ``xr`` with disparities ``d``."""
+    z = triangulate_z(rect, xr[:, 0], d, beta, c_lr)
+    a, _ = rectified_rays(rect, xr[:, 0], d)
+    f = rect.K[0, 0]
+    py = (xr[:, 1] - rect.K[1, 2] - rect.canvas[1, 2]) / f
+    X_rect = np.stack([a * z, py * z, z], axis=1)
+    return X_rect @ rect.R_rect  # rectified -> left frame (R_rect^T applied to rows)
+
+
+def _residuals(p, rect, xr, d, pb, c_lr, c_lb):
+    X = _points(rect, xr, d, p[0], c_lr)
+    R = rotvec_to_matrix(p[1:4])
+    Xb = (X - np.array([p[4], p[5], -c_lb])) @ R.T
+    K = rect.K
+    proj = Xb[:, :2] / Xb[:, 2:3] * K[0, 0] + K[:2, 2]
+    return (proj - pb).ravel()
+
+
+def _initial(m: Matches, rect: Rectification, xr, d, c_lr: float, c_lb: float) -> np.ndarray:
+    A = m.affine[:, :2]
+    s = float(np.sqrt(abs(np.linalg.det(A))))
+    if s >= 1.0:
+        raise PipelineError(
+            f"left/back: the back view shows the scene {s:.4f}x as large as the left view "
+            "(expected < 1: is the back image taken behind the left camera?)"
+        )
+    z0 = c_lb * s / (1.0 - s)
+    a, b = rectified_rays(rect, xr[:, 0], d)
+    beta0 = float(np.median(np.arctan(a - c_lr / z0) - np.arctan(b)))
+    f = rect.K[0, 0]
+    turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
+    centre = np.array([rect.K[0, 2], rect.K[1, 2]])
+    du, dv = A @ centre + m.affine[:, 2] - s * centre
+    return np.array([beta0, np.arctan(dv / f), -np.arctan(du / f), -turn, 0.0, 0.0])
+
+
+def remove_ambiguity(
+    matches: Matches,
+    disparity: np.ndarray,
+    disparity_scale: float,
+    rect: Rectification,
+    baseline_lr_m: float,
+    baseline_lb_m: float,
+) -> Ambiguity:
+    """Fit the right camera's yaw correction from left/back ``matches``.
+
+    disparity: (h, w) float32 on the ``disparity_scale``-resized rectified canvas, px,
+    ``x_left - x_right``, NaN = unknown.
+    """
+    xr, d = _sample_disparity(disparity, disparity_scale, rect, matches.left)
+    ok = np.isfinite(d)
+    if ok.sum() < MIN_MATCHES:
+        raise PipelineError(
+            f"left/back: only {int(ok.sum())} back-view matches fall on a reliable disparity "
+            f"(need {MIN_MATCHES})"
+        )
+    xr, d, pb = xr[ok], d[ok], matches.other[ok]
+    args = (rect, xr, d, pb, baseline_lr_m, baseline_lb_m)
+    p0 = _initial(matches, rect, xr, d, baseline_lr_m, baseline_lb_m)
+    scales = np.array([1e-4, 1e-3, 1e-3, 1e-3, 0.1, 0.1])
+    fit = least_squares(_residuals, p0, args=args, x_scale=scales)
+    fit = least_squares(
+        _residuals, fit.x, args=args, loss="soft_l1", f_scale=0.3, x_scale=scales
+    )
+    res = _residuals(fit.x, *args).reshape(-1, 2)
+    err = np.linalg.norm(res, axis=1)
+    inl = err < max(1.0, 4 * float(np.median(err)))
+    if inl.sum() < MIN_MATCHES:
+        raise PipelineError(
+            f"left/back: only {int(inl.sum())} matches agree with one back-camera pose"
+        )
+    args = (rect, xr[inl], d[inl], pb[inl], baseline_lr_m, baseline_lb_m)
+    fit = least_squares(_residuals, fit.x, args=args, x_scale=scales)
+    res = fit.fun
+    dof = max(res.size - fit.x.size, 1)
+    sigma2 = float(res @ res) / dof
+    try:
+        cov = np.linalg.inv(fit.jac.T @ fit.jac) * sigma2
+        beta_sigma = float(np.sqrt(cov[0, 0]))
+    except np.linalg.LinAlgError:
+        beta_sigma = float("inf")
+    f = rect.K[0, 0]
+    return Ambiguity(
+        beta=float(fit.x[0]),
+        offset_px=float(f * np.tan(fit.x[0])),
+        offset_sigma_px=f * beta_sigma,
+        back_rotvec=fit.x[1:4].copy(),
+        back_offset_m=(float(fit.x[4]), float(fit.x[5])),
+        matches_used=int(ok.sum()),
+        inliers=int(inl.sum()),
+        rms_px=float(np.sqrt(np.mean(res.reshape(-1, 2) ** 2) * 2)),
+    )

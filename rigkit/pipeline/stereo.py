@@ -1,0 +1,89 @@
+"""Stage 2: dense disparity on the rectified pair.
+
+The default matcher is OpenCV's semi-global matching (Hirschmueller 2008) with
+sub-pixel interpolation, a left-right consistency check (the right view's disparity
+comes from matching the mirrored pair) and speckle filtering. Any object with the
+:class:`StereoMatcher` signature can replace it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import cv2
+import numpy as np
+
+
+class StereoMatcher(Protocol):
+    def __call__(
+        self, left: np.ndarray, right: np.ndarray, disparity_range: tuple[int, int]
+    ) -> np.ndarray:
+        """left, right: (H, W) float32 rectified grey images; disparity_range: (lo, hi) px.
+
+        Returns disparity (H, W) float32, px, ``x_left - x_right``, NaN where unknown."""
+        ...
+
+
+@dataclass(frozen=True)
+class SGBM:
+    """Semi-global block matching with a left-right check (CPU, OpenCV)."""
+
+    block_size: int = 5
+    uniqueness: int = 5
+    lr_tolerance_px: float = 1.0
+    speckle_window: int = 100
+    speckle_range_px: int = 2
+
+    def _matcher(self, lo: int, n: int) -> cv2.StereoSGBM:
+        b = self.block_size
+        return cv2.StereoSGBM_create(
+            minDisparity=lo,
+            numDisparities=n,
+            blockSize=b,
+            P1=8 * b * b,
+            P2=32 * b * b,
+            disp12MaxDiff=-1,
+            preFilterCap=31,
+            uniquenessRatio=self.uniqueness,
+            speckleWindowSize=self.speckle_window,
+            speckleRange=self.speckle_range_px * 16,
+            mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
+        )
+
+    def __call__(
+        self, left: np.ndarray, right: np.ndarray, disparity_range: tuple[int, int]
+    ) -> np.ndarray:
+        lo, hi = disparity_range
+        n = max(16, int(np.ceil((hi - lo) / 16.0)) * 16)
+        l8 = np.clip(left, 0, 255).astype(np.uint8)
+        r8 = np.clip(right, 0, 255).astype(np.uint8)
+        raw = self._matcher(lo, n).compute(l8, r8)
+        # Right view's disparity: match the mirrored pair, then mirror back.
+        raw_r = self._matcher(-(lo + n) + 1, n).compute(r8[:, ::-1].copy(), l8[:, ::-1].copy())
+        invalid_l = raw < lo * 16
+        invalid_r = raw_r < (-(lo + n) + 1) * 16
+        disp = raw.astype(np.float32) / 16.0
+        disp_r = -raw_r[:, ::-1].astype(np.float32) / 16.0
+        disp[invalid_l] = np.nan
+        disp_r[invalid_r[:, ::-1]] = np.nan
+        return _left_right_check(disp, disp_r, self.lr_tolerance_px)
+
+
+def _left_right_check(disp: np.ndarray, disp_r: np.ndarray, tol: float) -> np.ndarray:
+    """Keep left disparities that the right view's disparity confirms within ``tol`` px."""
+    h, w = disp.shape
+    cols = np.arange(w, dtype=np.float32)[None, :]
+    xr = np.rint(cols - np.nan_to_num(disp, nan=-1e6)).astype(np.int64)
+    inside = (xr >= 0) & (xr < w)
+    back = np.full_like(disp, np.nan)
+    rows = np.broadcast_to(np.arange(h)[:, None], disp.shape)
+    back[inside] = disp_r[rows[inside], xr[inside]]
+    with np.errstate(invalid="ignore"):
+        ok = np.abs(back - disp) <= tol
+    return np.where(ok, disp, np.nan).astype(np.float32)
+
+
+def valid_mask(rect_left: np.ndarray, rect_right: np.ndarray) -> np.ndarray:
+    """Pixels where both warped images have content (the warp fills outside with 0)."""
+    return (rect_left > 0) & (rect_right > 0)

@@ -1,0 +1,142 @@
+"""Scene folders: what ``rigkit synth`` writes and ``rigkit eval`` reads.
+
+Layout of ``SCENE_DIR/`` (documented in docs/synthetic-scenes.md)::
+
+    left.png  right.png  back.png        8-bit grey images
+    scene.yaml                           rig, cameras (K, R, C), generator parameters
+    ground_truth/depth_left.npy          (H, W) float32, metres, z in the left camera, NaN = no hit
+    ground_truth/depth_right.npy         same for the right camera (for visibility)
+    ground_truth/depth_back.npy          same for the back camera
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from rigkit.errors import InputError
+from rigkit.geometry import Camera
+from rigkit.synth.render import expose, render_view
+from rigkit.synth.scene import Scene
+
+VIEWS = ("left", "right", "back")
+SCENE_FILE = "scene.yaml"
+
+
+def _camera_dict(cam: Camera, euler: tuple[float, float, float]) -> dict[str, object]:
+    return {
+        "resolution": [cam.width, cam.height],
+        "intrinsics": {
+            "fx": float(cam.K[0, 0]),
+            "fy": float(cam.K[1, 1]),
+            "cx": float(cam.K[0, 2]),
+            "cy": float(cam.K[1, 2]),
+        },
+        "R_world_to_camera": [[float(x) for x in row] for row in cam.R],
+        "center_m": [float(x) for x in cam.C],
+        "euler_xyz_deg": list(euler),
+    }
+
+
+def write_scene(
+    scene: Scene, out_dir: Path, progress: Callable[[str, float], None] | None = None
+) -> dict[str, float]:
+    """Render all three views of ``scene`` into ``out_dir``. Returns seconds per view."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "ground_truth").mkdir(exist_ok=True)
+    timings: dict[str, float] = {}
+    for name in VIEWS:
+        t0 = time.perf_counter()
+        cb = (lambda frac, n=name: progress(n, frac)) if progress else None
+        radiance, depth = render_view(scene, name, cb)
+        _atomic_png(out_dir / f"{name}.png", expose(scene, name, radiance))
+        _atomic_npy(out_dir / "ground_truth" / f"depth_{name}.npy", depth)
+        timings[name] = time.perf_counter() - t0
+    meta = {
+        "format": "rigkit-synthetic-scene/1",
+        "seed": scene.seed,
+        "focal_px": scene.params.focal_px,
+        "baseline_lr_m": scene.params.baseline_lr_m,
+        "baseline_lb_m": scene.params.baseline_lb_m,
+        "params": asdict(scene.params),
+        "cameras": {n: _camera_dict(scene.cameras[n], scene.euler_deg[n]) for n in VIEWS},
+        "gains": scene.gains,
+        "geometry": scene.description(),
+    }
+    tmp = out_dir / (SCENE_FILE + ".tmp")
+    tmp.write_text(yaml.safe_dump(meta, sort_keys=False))
+    os.replace(tmp, out_dir / SCENE_FILE)
+    return timings
+
+
+def _atomic_png(path: Path, img: np.ndarray) -> None:
+    tmp = path.with_name(path.stem + ".tmp.png")
+    if not cv2.imwrite(str(tmp), img, [cv2.IMWRITE_PNG_COMPRESSION, 3]):
+        raise InputError(f"cannot write {path}")
+    os.replace(tmp, path)
+
+
+def _atomic_npy(path: Path, arr: np.ndarray) -> None:
+    tmp = path.with_name(path.stem + ".tmp.npy")
+    np.save(tmp, arr)
+    os.replace(tmp, path)
+
+
+@dataclass(frozen=True)
+class SceneTruth:
+    """Ground truth of a scene folder, as ``rigkit eval`` needs it."""
+
+    path: Path
+    cameras: dict[str, Camera]
+    focal_px: float
+    baseline_lr_m: float
+    baseline_lb_m: float
+
+    def depth(self, view: str) -> np.ndarray:
+        """(H, W) float32, metres, z in ``view``'s camera frame, NaN where nothing was hit."""
+        p = self.path / "ground_truth" / f"depth_{view}.npy"
+        if not p.is_file():
+            raise InputError(f"{self.path}: missing ground truth {p.name}")
+        return np.load(p)
+
+    def image_path(self, view: str) -> Path:
+        return self.path / f"{view}.png"
+
+
+def load_scene(path: str | Path) -> SceneTruth:
+    """Read ``scene.yaml`` of a scene folder written by :func:`write_scene`."""
+    path = Path(path)
+    meta_path = path / SCENE_FILE
+    if not meta_path.is_file():
+        raise InputError(f"{path}: not a scene folder (no {SCENE_FILE})")
+    try:
+        meta = yaml.safe_load(meta_path.read_text())
+        cams = {}
+        for name in VIEWS:
+            c = meta["cameras"][name]
+            k = c["intrinsics"]
+            K = np.array([[k["fx"], 0, k["cx"]], [0, k["fy"], k["cy"]], [0, 0, 1]], float)
+            w, h = c["resolution"]
+            cams[name] = Camera(
+                K=K,
+                R=np.array(c["R_world_to_camera"], float),
+                C=np.array(c["center_m"], float),
+                width=int(w),
+                height=int(h),
+            )
+        return SceneTruth(
+            path=path,
+            cameras=cams,
+            focal_px=float(meta["focal_px"]),
+            baseline_lr_m=float(meta["baseline_lr_m"]),
+            baseline_lb_m=float(meta["baseline_lb_m"]),
+        )
+    except (KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
+        raise InputError(f"{meta_path}: malformed scene description ({exc!r})") from None

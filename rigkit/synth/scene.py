@@ -1,0 +1,269 @@
+"""Random three-view scenes at long range, following the paper's synthetic protocol (sec. 5.2).
+
+A scene is analytic geometry in the left camera's frame (metres):
+
+* a terrain-like surface ``z = g(x, y)`` facing the cameras (a hillside or facade
+  300 m away): a tilted plane plus sinusoids and Gaussian bumps;
+* boxes (buildings, rocks) and spheres standing in front of it, with sharp depth
+  edges that occlude the terrain differently in each view.
+
+Each surface carries a texture made from a real photograph (``skimage.data``) mixed
+with fine noise, mapped in the surface's own metric coordinates so that all three
+views see the same surface pattern.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from rigkit.errors import InputError
+from rigkit.geometry import Camera, euler_to_matrix, focal_from_fov, intrinsics
+
+
+@dataclass(frozen=True)
+class SynthParams:
+    """Everything ``rigkit synth`` can set. Angles in degrees, lengths in metres."""
+
+    width: int = 4608
+    height: int = 3456
+    hfov_deg: float = 6.0
+    distance_m: float = 300.0  # depth of the scene centre along the left optical axis
+    baseline_lr_m: float = 2.0  # right camera at (C_lr, 0, 0)
+    baseline_lb_m: float = 2.0  # back camera C_lb behind the left one
+    back_side_m: float = 0.0  # back camera offset to the right (+x)
+    back_up_m: float = 0.3  # back camera raised by this much (-y in camera axes)
+    max_tilt_deg: float = 1.0  # |x|, |y| Euler angles of right and back cameras
+    max_roll_deg: float = 5.0  # |z| Euler angle of right and back cameras
+    max_pp_offset_px: float = 30.0  # principal point offset from the image centre, per axis
+    relief: float = 0.03  # terrain depth variation, as a fraction of distance
+    n_boxes: int = 7
+    n_spheres: int = 3
+    noise_dn: float = 1.5  # sensor read noise, 8-bit digital numbers (sigma)
+    gain_jitter: float = 0.04  # per-camera exposure/gain difference (fraction)
+
+    def validate(self) -> None:
+        checks = {
+            "width": self.width >= 64,
+            "height": self.height >= 48,
+            "hfov_deg": 0.1 < self.hfov_deg < 60,
+            "distance_m": self.distance_m > 0,
+            "baseline_lr_m": self.baseline_lr_m > 0,
+            "baseline_lb_m": self.baseline_lb_m > 0,
+            "relief": 0 <= self.relief < 0.5,
+            "noise_dn": self.noise_dn >= 0,
+            "n_boxes": self.n_boxes >= 0,
+            "n_spheres": self.n_spheres >= 0,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise InputError(f"synth parameter {name}={getattr(self, name)!r} is out of range")
+
+    @property
+    def focal_px(self) -> float:
+        return focal_from_fov(self.width, self.hfov_deg)
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """``z = base + sx*x + sy*y + sum A sin(kx x + ky y + phase) + sum B exp(-r^2 / 2 s^2)``."""
+
+    base: float
+    slope: tuple[float, float]
+    waves: tuple[tuple[float, float, float, float], ...]  # (A, kx, ky, phase)
+    bumps: tuple[tuple[float, float, float, float], ...]  # (B, x0, y0, sigma)
+    texture: int
+
+    def z(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        out = self.base + self.slope[0] * x + self.slope[1] * y
+        for a, kx, ky, ph in self.waves:
+            out = out + a * np.sin(kx * x + ky * y + ph)
+        for b, x0, y0, s in self.bumps:
+            out = out + b * np.exp(-((x - x0) ** 2 + (y - y0) ** 2) / (2 * s * s))
+        return out
+
+    def gradient(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        gx = np.full_like(x, self.slope[0])
+        gy = np.full_like(y, self.slope[1])
+        for a, kx, ky, ph in self.waves:
+            c = a * np.cos(kx * x + ky * y + ph)
+            gx = gx + kx * c
+            gy = gy + ky * c
+        for b, x0, y0, s in self.bumps:
+            e = b * np.exp(-((x - x0) ** 2 + (y - y0) ** 2) / (2 * s * s)) / (s * s)
+            gx = gx - (x - x0) * e
+            gy = gy - (y - y0) * e
+        return gx, gy
+
+
+@dataclass(frozen=True)
+class Box:
+    """An oriented box: centre (m), half extents (m), rotation (world -> box axes)."""
+
+    center: tuple[float, float, float]
+    half: tuple[float, float, float]
+    euler_deg: tuple[float, float, float]
+    texture: int
+
+
+@dataclass(frozen=True)
+class Sphere:
+    center: tuple[float, float, float]
+    radius: float
+    texture: int
+
+
+@dataclass(frozen=True)
+class TextureMap:
+    """Which photograph a surface wears, at what scale (m per texel), rotation and offset."""
+
+    photo: str
+    texel_m: float
+    angle_deg: float
+    offset: tuple[float, float]
+    noise_seed: int
+
+
+@dataclass(frozen=True)
+class Scene:
+    params: SynthParams
+    seed: int
+    cameras: dict[str, Camera]
+    euler_deg: dict[str, tuple[float, float, float]]
+    terrain: Terrain
+    boxes: tuple[Box, ...]
+    spheres: tuple[Sphere, ...]
+    textures: tuple[TextureMap, ...]
+    light: tuple[float, float, float] = field(default=(0.35, -0.55, -0.76))
+    gains: dict[str, float] = field(default_factory=dict)
+
+    def description(self) -> dict[str, object]:
+        """Plain data describing the geometry (for scene.yaml)."""
+        return {
+            "terrain": asdict(self.terrain),
+            "boxes": [asdict(b) for b in self.boxes],
+            "spheres": [asdict(s) for s in self.spheres],
+            "textures": [asdict(t) for t in self.textures],
+            "light": list(self.light),
+        }
+
+
+PHOTOS = (
+    "astronaut",
+    "camera",
+    "coffee",
+    "chelsea",
+    "rocket",
+    "brick",
+    "grass",
+    "gravel",
+    "moon",
+    "coins",
+    "text",
+)
+
+
+def _cameras(p: SynthParams, rng: np.random.Generator) -> tuple[dict[str, Camera], dict]:
+    f = p.focal_px
+    cams: dict[str, Camera] = {}
+    eulers: dict[str, tuple[float, float, float]] = {}
+    centres = {
+        "left": (0.0, 0.0, 0.0),
+        "right": (p.baseline_lr_m, 0.0, 0.0),
+        "back": (p.back_side_m, -p.back_up_m, -p.baseline_lb_m),
+    }
+    for name, centre in centres.items():
+        if name == "left":
+            e = (0.0, 0.0, 0.0)
+        else:
+            tx, ty = rng.uniform(-p.max_tilt_deg, p.max_tilt_deg, 2)
+            e = (float(tx), float(ty), float(rng.uniform(-p.max_roll_deg, p.max_roll_deg)))
+        pp = rng.uniform(-p.max_pp_offset_px, p.max_pp_offset_px, 2)
+        K = intrinsics(f, (p.width - 1) / 2 + pp[0], (p.height - 1) / 2 + pp[1])
+        # euler_to_matrix gives the camera's orientation (camera -> world); R is its inverse.
+        R = euler_to_matrix(*e).T
+        cams[name] = Camera(K=K, R=R, C=np.array(centre), width=p.width, height=p.height)
+        eulers[name] = e
+    return cams, eulers
+
+
+def _terrain(p: SynthParams, rng: np.random.Generator, half_w: float) -> Terrain:
+    relief = p.relief * p.distance_m
+    waves = []
+    for _ in range(6):
+        wavelength = rng.uniform(0.15, 1.0) * half_w * 2
+        k = 2 * np.pi / wavelength
+        theta = rng.uniform(0, 2 * np.pi)
+        # keep slopes bounded: amplitude * k <= 0.25
+        amp = min(rng.uniform(0.05, 0.15) * relief, 0.25 / k)
+        waves.append((amp, k * np.cos(theta), k * np.sin(theta), rng.uniform(0, 2 * np.pi)))
+    bumps = []
+    for _ in range(4):
+        s = rng.uniform(0.1, 0.3) * half_w
+        b = rng.uniform(-0.35, 0.35) * relief
+        b = float(np.sign(b) * min(abs(b), 0.4 * s))
+        bumps.append((b, *rng.uniform(-half_w, half_w, 2), s))
+    slope = tuple(rng.uniform(-0.25, 0.25, 2) * relief / half_w)
+    return Terrain(
+        base=p.distance_m,
+        slope=(float(slope[0]), float(slope[1])),
+        waves=tuple(tuple(float(v) for v in w) for w in waves),  # type: ignore[misc]
+        bumps=tuple(tuple(float(v) for v in b) for b in bumps),  # type: ignore[misc]
+        texture=0,
+    )
+
+
+def generate_scene(params: SynthParams, seed: int) -> Scene:
+    """Draw a random scene and rig from ``seed`` (the same seed gives the same scene)."""
+    params.validate()
+    rng = np.random.default_rng(seed)
+    cams, eulers = _cameras(params, rng)
+    f = params.focal_px
+    half_w = params.distance_m * params.width / 2 / f
+    half_h = params.distance_m * params.height / 2 / f
+    terrain = _terrain(params, rng, half_w)
+    n_tex = 1 + params.n_boxes + params.n_spheres
+    pixel_m = params.distance_m / f
+    textures = tuple(
+        TextureMap(
+            photo=PHOTOS[int(rng.integers(len(PHOTOS)))],
+            texel_m=float(pixel_m * rng.uniform(1.2, 2.0)),
+            angle_deg=float(rng.uniform(0, 360)),
+            offset=(float(rng.uniform(0, 400)), float(rng.uniform(0, 400))),
+            noise_seed=int(rng.integers(2**31)),
+        )
+        for _ in range(n_tex)
+    )
+    relief = params.relief * params.distance_m
+    boxes = []
+    for i in range(params.n_boxes):
+        x, y = rng.uniform(-0.85, 0.85) * half_w, rng.uniform(-0.85, 0.85) * half_h
+        z = float(terrain.z(np.array(x), np.array(y))) - rng.uniform(0.3, 1.2) * max(relief, 1)
+        half = (
+            float(rng.uniform(0.06, 0.2) * half_w),
+            float(rng.uniform(0.06, 0.25) * half_h),
+            float(rng.uniform(0.5, 3.0)),
+        )
+        e = (float(rng.uniform(-10, 10)), float(rng.uniform(-40, 40)), float(rng.uniform(-8, 8)))
+        boxes.append(Box((float(x), float(y), z), half, e, texture=1 + i))
+    spheres = []
+    for i in range(params.n_spheres):
+        x, y = rng.uniform(-0.85, 0.85) * half_w, rng.uniform(-0.85, 0.85) * half_h
+        r = float(rng.uniform(0.05, 0.12) * half_w)
+        z = float(terrain.z(np.array(x), np.array(y))) - r - rng.uniform(0.2, 0.8) * max(relief, 1)
+        spheres.append(Sphere((float(x), float(y), z), r, texture=1 + params.n_boxes + i))
+    gains = {
+        name: float(1 + rng.uniform(-params.gain_jitter, params.gain_jitter)) for name in cams
+    }
+    return Scene(
+        params=params,
+        seed=seed,
+        cameras=cams,
+        euler_deg=eulers,
+        terrain=terrain,
+        boxes=tuple(boxes),
+        spheres=tuple(spheres),
+        textures=textures,
+        gains=gains,
+    )
