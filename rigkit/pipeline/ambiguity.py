@@ -30,6 +30,7 @@ from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, scaling
 
 MIN_MATCHES = 30
+EDGE_WINDOW = 7  # px of the stereo grid: matches this close to a depth edge are not used
 
 
 @dataclass(frozen=True)
@@ -58,13 +59,13 @@ def _sample_disparity(
     disparity: np.ndarray, scale: float, rect: Rectification, pts: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rectified full-res column and disparity (full-res px) at left pixels ``pts``.
-    Disparities near depth edges (3x3 spread over 0.5 px) are NaN."""
+    Disparities near depth edges or holes (spread over 0.5 px in a window) are NaN."""
     q = pts @ rect.H_left[:, :2].T + rect.H_left[:, 2]
     xr = q[:, :2] / q[:, 2:3]
     xs = xr @ scaling(scale)[:2, :2].T + scaling(scale)[:2, 2]
     m = xs.astype(np.float32).reshape(-1, 1, 2)
     d = cv2.remap(disparity, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderValue=np.nan)
-    k = np.ones((3, 3), np.uint8)
+    k = np.ones((EDGE_WINDOW, EDGE_WINDOW), np.uint8)
     filled = np.nan_to_num(disparity, nan=-1e6)
     spread = cv2.dilate(filled, k) - cv2.erode(np.nan_to_num(disparity, nan=1e6), k)
     s = cv2.remap(spread, m[..., 0], m[..., 1], cv2.INTER_NEAREST, borderValue=np.inf)
@@ -134,12 +135,12 @@ def remove_ambiguity(
     p0 = _initial(matches, rect, xr, d, baseline_lr_m, baseline_lb_m)
     scales = np.array([1e-4, 1e-3, 1e-3, 1e-3, 0.1, 0.1])
     fit = least_squares(_residuals, p0, args=args, x_scale=scales)
-    fit = least_squares(
-        _residuals, fit.x, args=args, loss="soft_l1", f_scale=0.3, x_scale=scales
-    )
+    # A redescending loss: a wrong disparity moves a point in the back view by little,
+    # so outliers are small and a bounded-influence (L1-like) loss would still be biased.
+    fit = least_squares(_residuals, fit.x, args=args, loss="cauchy", f_scale=0.2, x_scale=scales)
     res = _residuals(fit.x, *args).reshape(-1, 2)
     err = np.linalg.norm(res, axis=1)
-    inl = err < max(1.0, 4 * float(np.median(err)))
+    inl = err < 3.0 * 1.4826 * float(np.median(err))
     if inl.sum() < MIN_MATCHES:
         raise PipelineError(
             f"left/back: only {int(inl.sum())} matches agree with one back-camera pose"

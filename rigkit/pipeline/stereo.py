@@ -58,15 +58,15 @@ class SGBM:
         n = max(16, int(np.ceil((hi - lo) / 16.0)) * 16)
         l8 = np.clip(left, 0, 255).astype(np.uint8)
         r8 = np.clip(right, 0, 255).astype(np.uint8)
-        raw = self._matcher(lo, n).compute(l8, r8)
-        # Right view's disparity: match the mirrored pair, then mirror back.
-        raw_r = self._matcher(-(lo + n) + 1, n).compute(r8[:, ::-1].copy(), l8[:, ::-1].copy())
-        invalid_l = raw < lo * 16
-        invalid_r = raw_r < (-(lo + n) + 1) * 16
+        # Right view's disparity: mirroring both images and swapping them keeps the sign
+        # of x_left - x_right, so the same matcher applies; mirror the result back.
+        matcher = self._matcher(lo, n)
+        raw = matcher.compute(l8, r8)
+        raw_r = matcher.compute(r8[:, ::-1].copy(), l8[:, ::-1].copy())[:, ::-1]
         disp = raw.astype(np.float32) / 16.0
-        disp_r = -raw_r[:, ::-1].astype(np.float32) / 16.0
-        disp[invalid_l] = np.nan
-        disp_r[invalid_r[:, ::-1]] = np.nan
+        disp_r = raw_r.astype(np.float32) / 16.0
+        disp[raw < lo * 16] = np.nan
+        disp_r[raw_r < lo * 16] = np.nan
         return _left_right_check(disp, disp_r, self.lr_tolerance_px)
 
 
