@@ -10,6 +10,8 @@ To first order this is the paper's ``z = f C_lr / (d + q)`` with ``q = f * beta`
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import cv2
 import numpy as np
 
@@ -41,6 +43,22 @@ def triangulate_z(
     return np.where(z > 0, z, np.nan)
 
 
+def _left_grid(rect: Rectification, scale: float, shape: tuple[int, int]) -> Iterator[tuple]:
+    """For row chunks of the original left image: (rows, xs, ys, uf) where (xs, ys) are
+    the pixels' positions on the ``scale``-resized rectified canvas (float32, for
+    cv2.remap) and ``uf`` their full-resolution rectified column (float64)."""
+    H, W = shape
+    M = scaling(scale) @ rect.H_left
+    Hl = rect.H_left
+    u = np.arange(W, dtype=np.float64)
+    for r0 in range(0, H, CHUNK_ROWS):
+        uu, vv = np.meshgrid(u, np.arange(r0, min(r0 + CHUNK_ROWS, H), dtype=np.float64))
+        q = M[:, 0, None, None] * uu + M[:, 1, None, None] * vv + M[:, 2, None, None]
+        xs, ys = (q[0] / q[2]).astype(np.float32), (q[1] / q[2]).astype(np.float32)
+        uf = (Hl[0, 0] * uu + Hl[0, 1] * vv + Hl[0, 2]) / (Hl[2, 0] * uu + Hl[2, 1] * vv + Hl[2, 2])
+        yield slice(r0, r0 + uu.shape[0]), xs, ys, uf
+
+
 def depth_map(
     disparity: np.ndarray,
     disparity_scale: float,
@@ -55,18 +73,20 @@ def depth_map(
     ``x_left - x_right``, NaN = unknown. shape: (H, W) of the original left image.
     Returns (H, W) float32, metres, z in the left camera frame, NaN where unknown.
     """
-    H, W = shape
-    M = scaling(disparity_scale) @ rect.H_left
     out = np.empty(shape, np.float32)
-    u = np.arange(W, dtype=np.float64)
-    for r0 in range(0, H, CHUNK_ROWS):
-        v = np.arange(r0, min(r0 + CHUNK_ROWS, H), dtype=np.float64)
-        uu, vv = np.meshgrid(u, v)
-        q = M[:, 0, None, None] * uu + M[:, 1, None, None] * vv + M[:, 2, None, None]
-        xs, ys = (q[0] / q[2]).astype(np.float32), (q[1] / q[2]).astype(np.float32)
+    for rows, xs, ys, uf in _left_grid(rect, disparity_scale, shape):
         d = cv2.remap(disparity, xs, ys, cv2.INTER_LINEAR, borderValue=np.nan)
-        # Rectified full-resolution column of each left pixel.
-        qf = rect.H_left[:, 0, None, None] * uu + rect.H_left[:, 1, None, None] * vv
-        uf = (qf[0] + rect.H_left[0, 2]) / (qf[2] + rect.H_left[2, 2])
-        out[r0 : r0 + len(v)] = triangulate_z(rect, uf, d / disparity_scale, beta, baseline_m)
+        out[rows] = triangulate_z(rect, uf, d / disparity_scale, beta, baseline_m)
+    return out
+
+
+def mask_to_left(
+    mask: np.ndarray, scale: float, rect: Rectification, shape: tuple[int, int]
+) -> np.ndarray:
+    """Resample a bool mask of the ``scale``-resized rectified canvas to the original
+    left grid (nearest neighbour). Returns (H, W) bool."""
+    out = np.zeros(shape, bool)
+    src = mask.astype(np.uint8)
+    for rows, xs, ys, _ in _left_grid(rect, scale, shape):
+        out[rows] = cv2.remap(src, xs, ys, cv2.INTER_NEAREST, borderValue=0) > 0
     return out

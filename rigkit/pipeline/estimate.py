@@ -10,10 +10,10 @@ import numpy as np
 
 from rigkit.errors import InputError
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
-from rigkit.pipeline.depth import depth_map
+from rigkit.pipeline.depth import depth_map, mask_to_left
 from rigkit.pipeline.features import Matches, match_views
 from rigkit.pipeline.rectify import Rectification, pseudo_rectify, warp_pair
-from rigkit.pipeline.stereo import SGBM, StereoMatcher
+from rigkit.pipeline.stereo import SGBM, StereoMatcher, fill_holes
 
 
 @dataclass(frozen=True)
@@ -37,11 +37,14 @@ class DepthResult:
 
     depth: (H, W) float32, metres, z in the left camera frame, original left pixel grid,
     NaN where there is no estimate. sigma: (H, W) float32, metres, one standard error of
-    that depth (disparity noise and offset uncertainty combined); NaN where no depth.
+    that depth (disparity noise and offset uncertainty combined; larger where a hole was
+    filled from its background neighbour); NaN where no depth. filled: (H, W) bool,
+    pixels whose depth comes from hole filling rather than a match.
     """
 
     depth: np.ndarray
     sigma: np.ndarray
+    filled: np.ndarray
     rectification: Rectification
     ambiguity: Ambiguity
     disparity: np.ndarray
@@ -102,12 +105,15 @@ def estimate_depth(
     rig: RigGeometry,
     matcher: StereoMatcher | None = None,
     stereo_scale: float = 0.5,
+    fill_max_gap: int = 64,
     progress: Progress | None = None,
 ) -> DepthResult:
     """Dense metric depth of the left view from three (H, W) float32 grey images.
 
     ``stereo_scale``: resolution of stereo matching relative to the input (0.5 = half,
-    as in the paper). ``progress(stage, fraction)`` is called as stages finish.
+    as in the paper). ``fill_max_gap``: widest hole (px at the stereo resolution) filled
+    from its background neighbour; 0 disables. ``progress(stage, fraction)`` is called
+    as stages finish.
     """
     _check_sizes(left, right, back)
     matcher = matcher or SGBM()
@@ -136,12 +142,15 @@ def estimate_depth(
         m_lb, disparity, stereo_scale, rect, rig.baseline_lr_m, rig.baseline_lb_m
     )
     lap("ambiguity", 0.85)
-    depth = depth_map(disparity, stereo_scale, rect, amb.beta, rig.baseline_lr_m, left.shape)
-    sigma = _depth_sigma(depth, rig, amb, stereo_scale)
+    dense, holes = fill_holes(disparity, fill_max_gap)
+    depth = depth_map(dense, stereo_scale, rect, amb.beta, rig.baseline_lr_m, left.shape)
+    filled = mask_to_left(holes, stereo_scale, rect, left.shape)
+    sigma = _depth_sigma(depth, filled, rig, amb, stereo_scale)
     lap("depth", 1.0)
     return DepthResult(
         depth=depth,
         sigma=sigma,
+        filled=filled,
         rectification=rect,
         ambiguity=amb,
         disparity=disparity,
@@ -153,9 +162,13 @@ def estimate_depth(
 
 
 STEREO_NOISE_PX = 0.25  # typical sub-pixel matching error at the matching resolution
+FILLED_NOISE_PX = 2.0  # a filled hole is only as good as its neighbour's surface
 
 
-def _depth_sigma(depth: np.ndarray, rig: RigGeometry, amb: Ambiguity, scale: float) -> np.ndarray:
+def _depth_sigma(
+    depth: np.ndarray, filled: np.ndarray, rig: RigGeometry, amb: Ambiguity, scale: float
+) -> np.ndarray:
     """First-order error: dz = z^2 / (f C_lr) * sqrt(dd_stereo^2 + dd_offset^2)."""
-    dd = np.hypot(STEREO_NOISE_PX / scale, amb.offset_sigma_px)
-    return (depth.astype(np.float32) ** 2 * np.float32(dd / (rig.focal_px * rig.baseline_lr_m)))
+    stereo = np.where(filled, FILLED_NOISE_PX, STEREO_NOISE_PX) / scale
+    dd = np.hypot(stereo, amb.offset_sigma_px).astype(np.float32)
+    return depth.astype(np.float32) ** 2 * dd / np.float32(rig.focal_px * rig.baseline_lr_m)

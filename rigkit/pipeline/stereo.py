@@ -56,13 +56,20 @@ class SGBM:
     ) -> np.ndarray:
         lo, hi = disparity_range
         n = max(16, int(np.ceil((hi - lo) / 16.0)) * 16)
-        l8 = np.clip(left, 0, 255).astype(np.uint8)
-        r8 = np.clip(right, 0, 255).astype(np.uint8)
+        # SGBM leaves the first lo+n columns unmatched (and the mirrored pass the last
+        # ones): pad both images so that band falls outside the picture.
+        pad = n + abs(lo)
+        l8, r8 = (
+            cv2.copyMakeBorder(
+                np.clip(im, 0, 255).astype(np.uint8), 0, 0, pad, pad, cv2.BORDER_REPLICATE
+            )
+            for im in (left, right)
+        )
         # Right view's disparity: mirroring both images and swapping them keeps the sign
         # of x_left - x_right, so the same matcher applies; mirror the result back.
         matcher = self._matcher(lo, n)
-        raw = matcher.compute(l8, r8)
-        raw_r = matcher.compute(r8[:, ::-1].copy(), l8[:, ::-1].copy())[:, ::-1]
+        raw = matcher.compute(l8, r8)[:, pad:-pad]
+        raw_r = matcher.compute(r8[:, ::-1].copy(), l8[:, ::-1].copy())[:, ::-1][:, pad:-pad]
         disp = raw.astype(np.float32) / 16.0
         disp_r = raw_r.astype(np.float32) / 16.0
         disp[raw < lo * 16] = np.nan
@@ -84,6 +91,24 @@ def _left_right_check(disp: np.ndarray, disp_r: np.ndarray, tol: float) -> np.nd
     return np.where(ok, disp, np.nan).astype(np.float32)
 
 
-def valid_mask(rect_left: np.ndarray, rect_right: np.ndarray) -> np.ndarray:
-    """Pixels where both warped images have content (the warp fills outside with 0)."""
-    return (rect_left > 0) & (rect_right > 0)
+def fill_holes(disp: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
+    """Fill gaps of at most ``max_gap`` px along rows with the farther (smaller-disparity)
+    of the two valid neighbours, as Hirschmueller (2008) does for occlusions: a hole
+    next to a depth edge belongs to the occluded background. Gaps that touch the image
+    border are left NaN (nothing to interpolate from on that side).
+
+    disp: (H, W) float32 with NaN holes. Returns (filled disparity, bool mask of filled).
+    """
+    h, w = disp.shape
+    valid = np.isfinite(disp)
+    idx = np.broadcast_to(np.arange(w), (h, w))
+    prev_i = np.maximum.accumulate(np.where(valid, idx, -1), axis=1)
+    next_i = np.minimum.accumulate(np.where(valid, idx, w)[:, ::-1], axis=1)[:, ::-1]
+    gap = next_i - prev_i - 1
+    hole = ~valid & (prev_i >= 0) & (next_i < w) & (gap <= max_gap)
+    rows = np.broadcast_to(np.arange(h)[:, None], (h, w))
+    left_val = disp[rows[hole], prev_i[hole]]
+    right_val = disp[rows[hole], next_i[hole]]
+    out = disp.copy()
+    out[hole] = np.minimum(left_val, right_val)
+    return out, hole
