@@ -12,8 +12,8 @@ from rigkit.errors import InputError
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
 from rigkit.pipeline.depth import depth_map, mask_to_left
 from rigkit.pipeline.features import Matches, match_views
-from rigkit.pipeline.rectify import Rectification, pseudo_rectify, warp_pair
-from rigkit.pipeline.stereo import SGBM, StereoMatcher, fill_holes
+from rigkit.pipeline.rectify import Rectification, footprints, pseudo_rectify, warp_pair
+from rigkit.pipeline.stereo import SGBM, StereoMatcher, fill_holes, restrict_to_footprints
 
 
 @dataclass(frozen=True)
@@ -137,12 +137,17 @@ def estimate_depth(
     lo, hi = rect.disparity_range
     rng = (int(np.floor(lo * stereo_scale)), int(np.ceil(hi * stereo_scale)))
     disparity = matcher(rl, rr, rng)
+    left_fp, right_fp = footprints(rect, (left.shape[1], left.shape[0]), stereo_scale)
+    disparity = restrict_to_footprints(disparity, left_fp, right_fp)
     lap("stereo", 0.8)
     amb = remove_ambiguity(
         m_lb, disparity, stereo_scale, rect, rig.baseline_lr_m, rig.baseline_lb_m
     )
     lap("ambiguity", 0.85)
     dense, holes = fill_holes(disparity, fill_max_gap)
+    # Holes filled across a footprint edge would extrapolate into unseen ground.
+    dense = restrict_to_footprints(dense, left_fp, right_fp)
+    holes &= np.isfinite(dense)
     depth = depth_map(dense, stereo_scale, rect, amb.beta, rig.baseline_lr_m, left.shape)
     filled = mask_to_left(holes, stereo_scale, rect, left.shape)
     sigma = _depth_sigma(depth, filled, rig, amb, stereo_scale)

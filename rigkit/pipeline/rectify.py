@@ -161,6 +161,22 @@ def warp_pair(
     return out[0], out[1]
 
 
+def footprints(
+    rect: Rectification, image_size: tuple[int, int], scale: float, margin: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where the left and right images land on the ``scale``-resized rectified canvas:
+    two (h, w) bool masks, eroded by ``margin`` px so matching windows stay inside."""
+    ones = np.full((image_size[1], image_size[0]), 255, np.uint8)
+    S = scaling(scale)
+    size = (round(rect.size[0] * scale), round(rect.size[1] * scale))
+    kernel = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
+    masks = []
+    for H in (rect.H_left, rect.H_right):
+        m = cv2.warpPerspective(ones, S @ H, size, flags=cv2.INTER_NEAREST)
+        masks.append(cv2.erode(m, kernel) > 0)
+    return masks[0], masks[1]
+
+
 def scaling(scale: float) -> np.ndarray:
     """3x3 map from full-resolution to ``scale``-resized pixel coordinates (centres aligned)."""
     S = np.diag([scale, scale, 1.0])

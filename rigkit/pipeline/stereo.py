@@ -91,6 +91,20 @@ def _left_right_check(disp: np.ndarray, disp_r: np.ndarray, tol: float) -> np.nd
     return np.where(ok, disp, np.nan).astype(np.float32)
 
 
+def restrict_to_footprints(
+    disp: np.ndarray, left_valid: np.ndarray, right_valid: np.ndarray
+) -> np.ndarray:
+    """NaN where the left pixel, or its match ``x - d`` in the right image, lies outside
+    that image's footprint on the rectified canvas (all (H, W); masks bool)."""
+    h, w = disp.shape
+    xr = np.rint(np.arange(w)[None, :] - np.nan_to_num(disp, nan=-1e6)).astype(np.int64)
+    inside = (xr >= 0) & (xr < w)
+    ok = np.zeros((h, w), bool)
+    rows = np.broadcast_to(np.arange(h)[:, None], (h, w))
+    ok[inside] = right_valid[rows[inside], xr[inside]]
+    return np.where(ok & left_valid, disp, np.nan).astype(np.float32)
+
+
 def fill_holes(disp: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
     """Fill gaps of at most ``max_gap`` px along rows with the farther (smaller-disparity)
     of the two valid neighbours, as Hirschmueller (2008) does for occlusions: a hole

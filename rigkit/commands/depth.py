@@ -1,0 +1,141 @@
+"""``rigkit depth``: dense metric depth of the left view from three images."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+from pathlib import Path
+
+EXAMPLE = """example:
+  rigkit depth left.png right.png back.png --focal-px 43963 --baseline-lr 2 --baseline-lb 2 \\
+      --out out/depth.npy --preview
+  rigkit depth capture/example/left.png capture/example/right.png capture/example/back.png \\
+      --rig rigs/example.yaml --out out/example.npy --preview
+
+writes DEPTH.npy ((H, W) float32, metres, z in the left camera, NaN = no estimate, in the
+original left image's pixel grid), DEPTH.sigma.npy (one standard error, metres),
+DEPTH.json (offset, matches, warps, timings) and with --preview DEPTH.png and
+DEPTH.sigma.png. Outputs appear together or not at all.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "depth",
+        help="dense metric depth of the left view from left, right and back images",
+        description="Pseudo-rectify left/right, match stereo, remove the disparity offset "
+        "with the back view, and triangulate metric depth (docs/pipeline.md).",
+        epilog=EXAMPLE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("left", type=Path, help="left image (PNG, TIFF or JPEG; 8/16-bit)")
+    p.add_argument("right", type=Path, help="right image, same size")
+    p.add_argument("back", type=Path, help="back image, same size")
+    p.add_argument("--rig", type=Path, help="rig profile YAML (gives f and both baselines)")
+    p.add_argument("--focal-px", type=float, help="focal length, px (overrides --rig)")
+    p.add_argument("--baseline-lr", type=float, help="left-right baseline C_lr, m")
+    p.add_argument("--baseline-lb", type=float, help="left-back distance C_lb along z, m")
+    p.add_argument("--out", type=Path, required=True, help="depth map to write (.npy)")
+    p.add_argument("--preview", action="store_true", help="also write colour-mapped PNGs")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=run)
+
+
+def rig_geometry(args: argparse.Namespace):  # -> RigGeometry
+    """f and baselines from --rig, overridden by explicit flags; all three required."""
+    from rigkit.errors import InputError
+    from rigkit.pipeline import RigGeometry
+
+    values = {"focal_px": None, "baseline_lr_m": None, "baseline_lb_m": None}
+    if args.rig is not None:
+        from rigkit.rig import load_rig
+
+        profile = load_rig(args.rig)
+        values = {
+            "focal_px": profile.focal_px,
+            "baseline_lr_m": profile.baseline_lr.value_m,
+            "baseline_lb_m": profile.baseline_lb.value_m,
+        }
+    for key, flag in (("focal_px", "focal_px"), ("baseline_lr_m", "baseline_lr"),
+                      ("baseline_lb_m", "baseline_lb")):
+        if getattr(args, flag) is not None:
+            values[key] = getattr(args, flag)
+    missing = [k for k, v in values.items() if v is None]
+    if missing:
+        raise InputError(
+            "missing " + ", ".join(missing) + ": give --rig PROFILE or "
+            "--focal-px, --baseline-lr and --baseline-lb"
+        )
+    return RigGeometry(**values)  # type: ignore[arg-type]
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigkit.errors import InputError
+    from rigkit.pipeline import estimate_depth
+    from rigkit.pipeline.images import load_grey
+    from rigkit.preview import colorize, depth_range
+    from rigkit.progress import Progress
+
+    rig = rig_geometry(args)
+    if args.out.suffix != ".npy":
+        raise InputError(f"--out {args.out}: expected a .npy file name")
+    left, right, back = (load_grey(p) for p in (args.left, args.right, args.back))
+    progress = Progress("depth", args.quiet)
+    result = estimate_depth(left, right, back, rig, progress=lambda s, f: progress(s, f))
+
+    out = args.out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stem = out.with_suffix("")
+    files: dict[Path, object] = {
+        out: result.depth,
+        Path(f"{stem}.sigma.npy"): result.sigma,
+    }
+    meta = {
+        "inputs": {k: str(getattr(args, k)) for k in ("left", "right", "back")},
+        "rig": {
+            "focal_px": rig.focal_px,
+            "baseline_lr_m": rig.baseline_lr_m,
+            "baseline_lb_m": rig.baseline_lb_m,
+        },
+        **result.diagnostics(),
+    }
+    files[Path(f"{stem}.json")] = json.dumps(meta, indent=2)
+    if args.preview:
+        lo, hi = depth_range(result.depth)
+        files[Path(f"{stem}.png")] = colorize(result.depth, lo, hi, "depth z (m)")
+        rel = 100 * result.sigma / result.depth
+        files[Path(f"{stem}.sigma.png")] = colorize(rel, 0.0, 2.0, "1-sigma error (% of depth)")
+    _write_all(files)
+    d = meta
+    print(
+        f"wrote {out} ({left.shape[1]}x{left.shape[0]}, density {100 * d['density']:.1f} %, "
+        f"depth {d['depth_range_m'][0]:.1f}-{d['depth_range_m'][1]:.1f} m, "
+        f"offset {d['disparity_offset_px']:.2f} +- {d['disparity_offset_sigma_px']:.2f} px, "
+        f"{sum(result.timings_s.values()):.1f} s)"
+    )
+    return 0
+
+
+def _write_all(files: dict[Path, object]) -> None:
+    """Write every output to a temporary folder first, then move them into place, so a
+    failure never leaves a partial result that looks complete."""
+    import numpy as np
+
+    from rigkit.preview import write_png
+
+    first = next(iter(files))
+    with tempfile.TemporaryDirectory(dir=first.parent, prefix=".rigkit-") as tmp:
+        staged = []
+        for path, content in files.items():
+            t = Path(tmp) / path.name
+            if isinstance(content, str):
+                t.write_text(content)
+            elif path.suffix == ".png":
+                write_png(t, content)  # type: ignore[arg-type]
+            else:
+                np.save(t, content)  # type: ignore[arg-type]
+            staged.append((t, path))
+        for t, path in staged:
+            os.replace(t, path)
