@@ -12,8 +12,11 @@ from rigkit.errors import RigkitError
 
 # Subcommand modules under rigkit.commands, in the order --help lists them.
 COMMANDS: tuple[str, ...] = (
+    "depth",
     "synth",
     "eval",
+    "rig",
+    "rangefinder",
 )
 
 
@@ -41,6 +44,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"rigkit {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # Output piped into a reader that stopped (e.g. `| head`): not an error.
+        sys.stderr.close()
+        return 0
     return code
 
 

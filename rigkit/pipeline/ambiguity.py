@@ -30,6 +30,7 @@ from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, scaling
 
 MIN_MATCHES = 30
+MAX_BACK_SIDE = 0.5  # back camera's sideways offset, as a fraction of C_lr, still plausible
 EDGE_WINDOW = 7  # px of the stereo grid: matches this close to a depth edge are not used
 
 
@@ -102,6 +103,7 @@ def _initial(m: Matches, rect: Rectification, xr, d, c_lr: float, c_lb: float) -
         )
     z0 = c_lb * s / (1.0 - s)
     a, b = rectified_rays(rect, xr[:, 0], d)
+    # triangulate_z: z = c_lr / (a - tan(atan(b) + beta)); solve for z = z0.
     beta0 = float(np.median(np.arctan(a - c_lr / z0) - np.arctan(b)))
     f = rect.K[0, 0]
     turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
@@ -131,22 +133,15 @@ def remove_ambiguity(
             f"(need {MIN_MATCHES})"
         )
     xr, d, pb = xr[ok], d[ok], matches.other[ok]
-    args = (rect, xr, d, pb, baseline_lr_m, baseline_lb_m)
-    p0 = _initial(matches, rect, xr, d, baseline_lr_m, baseline_lb_m)
-    scales = np.array([1e-4, 1e-3, 1e-3, 1e-3, 0.1, 0.1])
-    fit = least_squares(_residuals, p0, args=args, x_scale=scales)
-    # A redescending loss: a wrong disparity moves a point in the back view by little,
-    # so outliers are small and a bounded-influence (L1-like) loss would still be biased.
-    fit = least_squares(_residuals, fit.x, args=args, loss="cauchy", f_scale=0.2, x_scale=scales)
-    res = _residuals(fit.x, *args).reshape(-1, 2)
-    err = np.linalg.norm(res, axis=1)
-    inl = err < 3.0 * 1.4826 * float(np.median(err))
-    if inl.sum() < MIN_MATCHES:
+    fit, inl = _fit(matches, rect, xr, d, pb, baseline_lr_m, baseline_lb_m)
+    side = float(fit.x[4])
+    if abs(side) > MAX_BACK_SIDE * baseline_lr_m:
+        # The back camera stands behind the left one. If it fits about C_lr to the
+        # side, the "left" image came from the right camera: the parallax is reversed.
         raise PipelineError(
-            f"left/back: only {int(inl.sum())} matches agree with one back-camera pose"
+            f"left and right look swapped: the back camera fits {side:+.2f} m to the side "
+            f"of the given left camera (expected behind it, C_lr = {baseline_lr_m} m)"
         )
-    args = (rect, xr[inl], d[inl], pb[inl], baseline_lr_m, baseline_lb_m)
-    fit = least_squares(_residuals, fit.x, args=args, x_scale=scales)
     res = fit.fun
     dof = max(res.size - fit.x.size, 1)
     sigma2 = float(res @ res) / dof
@@ -164,5 +159,30 @@ def remove_ambiguity(
         back_offset_m=(float(fit.x[4]), float(fit.x[5])),
         matches_used=int(ok.sum()),
         inliers=int(inl.sum()),
-        rms_px=float(np.sqrt(np.mean(res.reshape(-1, 2) ** 2) * 2)),
+        rms_px=_rms(fit.fun),
     )
+
+
+def _rms(res: np.ndarray) -> float:
+    """RMS reprojection distance (px) of stacked (u, v) residuals."""
+    return float(np.sqrt(np.mean(res**2) * 2))
+
+
+def _fit(matches, rect, xr, d, pb, c_lr: float, c_lb: float):
+    """Robust fit of (beta, back rotation, back offset); returns (final fit on the
+    inliers, inlier mask over the given matches)."""
+    args = (rect, xr, d, pb, c_lr, c_lb)
+    p0 = _initial(matches, rect, xr, d, c_lr, c_lb)
+    scales = np.array([1e-4, 1e-3, 1e-3, 1e-3, 0.1, 0.1])
+    fit = least_squares(_residuals, p0, args=args, x_scale=scales)
+    # A redescending loss: a wrong disparity moves a point in the back view by little,
+    # so outliers are small and a bounded-influence (L1-like) loss would still be biased.
+    fit = least_squares(_residuals, fit.x, args=args, loss="cauchy", f_scale=0.2, x_scale=scales)
+    err = np.linalg.norm(_residuals(fit.x, *args).reshape(-1, 2), axis=1)
+    inl = err < 3.0 * 1.4826 * float(np.median(err))
+    if inl.sum() < MIN_MATCHES:
+        raise PipelineError(
+            f"left/back: only {int(inl.sum())} matches agree with one back-camera pose"
+        )
+    args = (rect, xr[inl], d[inl], pb[inl], c_lr, c_lb)
+    return least_squares(_residuals, fit.x, args=args, x_scale=scales), inl

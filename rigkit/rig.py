@@ -1,0 +1,633 @@
+"""Rig profiles: the three cameras, the two baselines and the rangefinder, read from YAML.
+
+A rig is described once, in a profile such as ``rigs/p1000-tripod.yaml``, and
+loaded by :func:`load_rig` into a frozen :class:`RigProfile`. The format is
+documented in ``docs/rig-profiles.md``; in short::
+
+    version: 1
+    name: p1000-tripod
+    camera:                      # shared by left, right and back (or `cameras:` with each)
+      model: Nikon Coolpix P1000
+      sensor_mm: [6.17, 4.6275]  # [width, height] of the area the image covers
+      resolution: [4608, 3456]   # [width, height] in pixels
+      focal_length: {equivalent_35mm_mm: 400, tolerance_fraction: 0.01}
+    baselines:
+      C_lr: {value_m: 2.0, tolerance_m: 0.02}
+      C_lb: {value_m: 2.0, tolerance_m: 0.02}
+
+Units are part of every key name. Errors name the file, the dotted key
+(``cameras.left.focal_length.mm``) and the offending value, on one line.
+
+Coordinates follow the paper's camera frame of the left camera, but with ``up``
+positive: x to the right (looking along the viewing direction), y up, z forward
+along the viewing direction.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from collections.abc import Callable, Hashable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, TypeVar
+
+import yaml
+
+from rigkit.errors import InputError
+
+FULL_FRAME_DIAGONAL_MM = math.hypot(36.0, 24.0)
+"""Diagonal of the 36 x 24 mm frame that 35 mm-equivalent focal lengths refer to (43.27 mm)."""
+
+PROFILE_VERSION = 1
+CAMERA_ROLES = ("left", "right", "back")
+FOCAL_AGREEMENT = 0.001
+"""The three cameras' focal lengths may differ by at most this fraction (0.1 %)."""
+ASPECT_AGREEMENT = 0.01
+"""``sensor_mm`` and ``resolution`` must have the same aspect ratio within 1 % (square pixels)."""
+FOCAL_FORMS = ("mm", "equivalent_35mm_mm", "px")
+
+_MAX_SENSOR_MM = 100.0
+_MAX_FOCAL_MM = 5000.0
+_MAX_EQUIVALENT_MM = 20000.0
+_MAX_RESOLUTION_PX = 100_000
+_MAX_BASELINE_M = 100.0
+_MAX_OFFSET_M = 10.0
+_MAX_RANGE_M = 100_000.0
+_MAX_BAUD = 4_000_000
+_PROTOCOL_PATTERN = re.compile(r"[a-z0-9][a-z0-9_-]*")
+_T = TypeVar("_T")
+
+
+# --------------------------------------------------------------------------- conversions
+
+
+def focal_px_from_mm(f_mm: float, sensor_width_mm: float, width_px: int) -> float:
+    """Focal length in pixels from the real focal length in mm and the sensor width in mm.
+
+    ``sensor_width_mm`` is the width of the area the ``width_px``-wide image covers;
+    pixels are assumed square.
+    """
+    _require_positive(f_mm=f_mm, sensor_width_mm=sensor_width_mm, width_px=width_px)
+    return f_mm * width_px / sensor_width_mm
+
+
+def focal_px_from_35mm_equivalent(
+    f_eq_mm: float,
+    sensor_mm: tuple[float, float] | None,
+    resolution: tuple[int, int],
+) -> float:
+    """Focal length in pixels from a 35 mm-equivalent focal length.
+
+    The equivalence is defined on the diagonal: crop factor = 43.27 mm / sensor
+    diagonal, real focal length = ``f_eq_mm`` / crop factor, then pixels via the
+    sensor width. (Dividing by the 36 mm width instead is ~4 % off on a 4:3 sensor.)
+
+    The result depends only on the sensor's aspect ratio, not its size:
+    f_px = f_eq_mm * (diagonal / width) * width_px / 43.27. With ``sensor_mm`` None
+    the image's own aspect ratio is used (square pixels, whole sensor imaged).
+    """
+    width_px, height_px = resolution
+    width_mm, height_mm = sensor_mm if sensor_mm is not None else (float(width_px), height_px)
+    _require_positive(f_eq_mm=f_eq_mm, sensor_width_mm=width_mm, sensor_height_mm=height_mm)
+    crop_factor = FULL_FRAME_DIAGONAL_MM / math.hypot(width_mm, height_mm)
+    return focal_px_from_mm(f_eq_mm / crop_factor, width_mm, width_px)
+
+
+def fov_deg(focal_px: float, size_px: float) -> float:
+    """Full field of view in degrees across ``size_px`` pixels (centred principal point)."""
+    _require_positive(focal_px=focal_px, size_px=size_px)
+    return math.degrees(2.0 * math.atan(size_px / (2.0 * focal_px)))
+
+
+def _require_positive(**values: float) -> None:
+    for name, value in values.items():
+        if not value > 0:
+            raise ValueError(f"{name} must be > 0, got {value!r}")
+
+
+# --------------------------------------------------------------------------- the profile
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """One camera (left, right or back).
+
+    ``focal_px`` is the pinhole focal length in pixels (fx = fy);
+    ``focal_tolerance`` its relative uncertainty as a fraction (0.01 = 1 %);
+    ``principal_point_px`` is (cx, cy) in pixels from the top-left pixel's corner,
+    None meaning the image centre. ``focal_given`` keeps the form the profile used,
+    e.g. ``("equivalent_35mm_mm", 400.0)``, so a profile is written back as it was read.
+    """
+
+    model: str
+    sensor_mm: tuple[float, float] | None
+    resolution: tuple[int, int]
+    focal_px: float
+    focal_tolerance: float
+    principal_point_px: tuple[float, float] | None
+    focal_given: tuple[str, float] | None = None
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A baseline in metres and its measurement tolerance (one-sided bound, metres)."""
+
+    value_m: float
+    tolerance_m: float
+
+    @property
+    def relative_tolerance(self) -> float:
+        """``tolerance_m / value_m``."""
+        return self.tolerance_m / self.value_m
+
+
+@dataclass(frozen=True)
+class RangefinderSpec:
+    """The laser rangefinder used for spot checks.
+
+    ``protocol`` names how readings arrive (``manual``: typed in by hand);
+    ``port``/``baud`` for a serial device; ``offset_m`` is (right, up, forward) of
+    its aperture from the left camera's optical centre, in metres, None if unknown.
+    """
+
+    protocol: str
+    port: str | None
+    baud: int | None
+    offset_m: tuple[float, float, float] | None
+
+
+@dataclass(frozen=True)
+class RigProfile:
+    """A three-camera rig as loaded from a profile.
+
+    ``baseline_lr`` is C_lr, the distance between the left and right optical
+    centres (along x). ``baseline_lb`` is C_lb, how far the back camera sits behind
+    the left one *along the viewing axis* (z). ``back_offset_m`` is (x, y) of the
+    back camera's optical centre relative to the point C_lb behind the left one:
+    x positive to the right, y positive up; None if not known.
+    ``nominal_range_m`` is the range the rig is designed for, if stated.
+    """
+
+    name: str
+    cameras: Mapping[str, CameraSpec] = field(hash=False)
+    baseline_lr: Baseline
+    baseline_lb: Baseline
+    back_offset_m: tuple[float, float] | None
+    rangefinder: RangefinderSpec | None
+    notes: str
+    nominal_range_m: float | None
+    source: Path = field(compare=False)
+
+    @property
+    def focal_px(self) -> float:
+        """The common focal length in pixels (mean of the three cameras).
+
+        Raises InputError if they differ by more than 0.1 %: the pipeline assumes one f.
+        """
+        values = {role: cam.focal_px for role, cam in self.cameras.items()}
+        low, high = min(values.values()), max(values.values())
+        if (high - low) / low > FOCAL_AGREEMENT:
+            listed = ", ".join(f"{role} {value:.1f} px" for role, value in values.items())
+            raise InputError(
+                f"{self.source}: cameras: focal lengths differ by "
+                f"{100 * (high - low) / low:.2f} % ({listed}); rigkit needs one common "
+                f"focal length (within {100 * FOCAL_AGREEMENT:g} %)"
+            )
+        return sum(values.values()) / len(values)
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """The common image size (width, height) in pixels; InputError if the cameras differ."""
+        sizes = {cam.resolution for cam in self.cameras.values()}
+        if len(sizes) > 1:
+            listed = ", ".join(
+                f"{role} {cam.resolution[0]}x{cam.resolution[1]}"
+                for role, cam in self.cameras.items()
+            )
+            raise InputError(
+                f"{self.source}: cameras: resolutions differ ({listed}); "
+                "rigkit needs one common image size"
+            )
+        return sizes.pop()
+
+    @property
+    def focal_tolerance(self) -> float:
+        """The largest of the three cameras' focal-length tolerances (fraction)."""
+        return max(cam.focal_tolerance for cam in self.cameras.values())
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_rig(path: str | Path) -> RigProfile:
+    """Read and validate a rig profile.
+
+    Raises InputError naming the file, the dotted key and the bad value for any
+    unknown key, missing key, wrong type, implausible unit or impossible value.
+    """
+    path = Path(path)
+    data = _read_yaml(path)
+    top = _Key(path, "")
+    keys = top.mapping(
+        data,
+        required=("version", "name", "baselines"),
+        optional=("camera", "cameras", "back_offset", "rangefinder", "notes", "nominal_range_m"),
+    )
+    _check_version(keys["version"], top.child("version"))
+    baselines = top.child("baselines")
+    pair = baselines.mapping(keys["baselines"], required=("C_lr", "C_lb"))
+    return RigProfile(
+        name=top.child("name").line(keys["name"]),
+        cameras=_cameras(keys, top),
+        baseline_lr=_baseline(pair["C_lr"], baselines.child("C_lr")),
+        baseline_lb=_baseline(pair["C_lb"], baselines.child("C_lb")),
+        back_offset_m=_optional(keys, "back_offset", top, _back_offset),
+        rangefinder=_optional(keys, "rangefinder", top, _rangefinder),
+        notes=top.child("notes").text(keys["notes"]) if "notes" in keys else "",
+        nominal_range_m=_optional(keys, "nominal_range_m", top, _nominal_range),
+        source=path,
+    )
+
+
+def _read_yaml(path: Path) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such rig profile") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read the rig profile ({exc})") from None
+    try:
+        data = yaml.load(text, Loader=_StrictLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = exc.problem or exc.context or "syntax error"
+        raise InputError(f"{path}: not valid YAML: {problem}{where}") from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"{path}: not valid YAML: {exc}") from None
+    if data is None:
+        raise InputError(f"{path}: the rig profile is empty")
+    return data
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """A SafeLoader that rejects a key written twice in one mapping (YAML keeps the last)."""
+
+
+def _construct_unique_mapping(loader: _StrictLoader, node: yaml.MappingNode) -> dict[Any, Any]:
+    seen: set[Any] = set()
+    for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":
+            continue
+        key = loader.construct_object(key_node)
+        if not isinstance(key, Hashable):
+            break  # construct_mapping reports the unhashable key
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"key {key!r} appears twice", key_node.start_mark
+            )
+        seen.add(key)
+    return loader.construct_mapping(node)
+
+
+_StrictLoader.add_constructor(
+    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping
+)
+
+
+@dataclass(frozen=True)
+class _Key:
+    """Where a value sits in a profile (file and dotted key), for error messages."""
+
+    file: Path
+    key: str
+
+    def child(self, name: str) -> _Key:
+        return _Key(self.file, f"{self.key}.{name}" if self.key else name)
+
+    def error(self, problem: str, value: Any = ...) -> InputError:
+        key = self.key or "(top level)"
+        got = "" if value is ... else f", got {_show(value)}"
+        return InputError(f"{self.file}: {key}: {problem}{got}")
+
+    def mapping(
+        self, value: Any, required: tuple[str, ...], optional: tuple[str, ...] = ()
+    ) -> dict[str, Any]:
+        """A mapping with exactly the ``required`` keys and any of the ``optional`` ones."""
+        if not isinstance(value, dict):
+            raise self.error("must be a mapping of keys to values", value)
+        allowed = required + optional
+        for key in value:
+            if key not in allowed:
+                raise self.child(str(key)).error(_unknown_key_problem(str(key), allowed))
+        for key in required:
+            if key not in value:
+                raise self.child(key).error("missing")
+        return value
+
+    def number(self, value: Any, unit: str) -> float:
+        """A finite real number (not a boolean, not a string with a unit in it)."""
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            hint = " (the unit is in the key name; write the number only)"
+            raise self.error(f"must be a number in {unit}{hint}", value)
+        if not math.isfinite(value):
+            raise self.error(f"must be a finite number in {unit}", value)
+        return float(value)
+
+    def bounded(
+        self, value: Any, unit: str, high: float, *, low: float = 0.0, hint: str = ""
+    ) -> float:
+        """A number in (low, high] (low < value <= high)."""
+        number = self.number(value, unit)
+        if not low < number <= high:
+            why = f" ({hint})" if hint and number > high else ""
+            raise self.error(f"must be > {low:g} and <= {high:g} {unit}{why}", value)
+        return number
+
+    def integer(self, value: Any, unit: str, high: int) -> int:
+        """A whole number in [1, high]."""
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(f"must be a whole number of {unit}", value)
+        if not 1 <= value <= high:
+            raise self.error(f"must be between 1 and {high} {unit}", value)
+        return value
+
+    def pair(self, value: Any, names: str) -> tuple[Any, Any]:
+        """A two-element list such as ``[width, height]``."""
+        if not isinstance(value, list) or len(value) != 2:
+            raise self.error(f"must be a list of two numbers [{names}]", value)
+        return value[0], value[1]
+
+    def line(self, value: Any) -> str:
+        """A non-empty single-line string."""
+        if not isinstance(value, str) or not value.strip() or "\n" in value.strip():
+            raise self.error("must be a non-empty single-line string", value)
+        return value.strip()
+
+    def text(self, value: Any) -> str:
+        """Free text (may span lines)."""
+        if not isinstance(value, str):
+            raise self.error("must be text", value)
+        return value.strip()
+
+
+def _show(value: Any) -> str:
+    shown = repr(value)
+    return shown if len(shown) <= 60 else shown[:57] + "..."
+
+
+def _unknown_key_problem(key: str, allowed: tuple[str, ...]) -> str:
+    close = difflib.get_close_matches(key, allowed, n=1)
+    suggestion = f"did you mean {close[0]!r}? " if close else ""
+    return f"unknown key; {suggestion}allowed here: {', '.join(allowed)}"
+
+
+def _optional(
+    keys: dict[str, Any], name: str, parent: _Key, read: Callable[[Any, _Key], _T]
+) -> _T | None:
+    """``read(value, key)`` when ``name`` is present, else None."""
+    return read(keys[name], parent.child(name)) if name in keys else None
+
+
+def _check_version(value: Any, key: _Key) -> None:
+    if isinstance(value, bool) or value != PROFILE_VERSION:
+        raise key.error(f"unsupported profile version (this rigkit reads {PROFILE_VERSION})", value)
+
+
+def _cameras(keys: dict[str, Any], top: _Key) -> Mapping[str, CameraSpec]:
+    if ("camera" in keys) == ("cameras" in keys):
+        raise top.error(
+            "give either 'camera' (one spec shared by left, right and back) "
+            "or 'cameras' (with left, right and back), not both or neither"
+        )
+    if "camera" in keys:
+        shared = _camera(keys["camera"], top.child("camera"))
+        return MappingProxyType(dict.fromkeys(CAMERA_ROLES, shared))
+    each = top.child("cameras")
+    specs = each.mapping(keys["cameras"], required=CAMERA_ROLES)
+    return MappingProxyType({role: _camera(specs[role], each.child(role)) for role in CAMERA_ROLES})
+
+
+def _camera(value: Any, key: _Key) -> CameraSpec:
+    keys = key.mapping(
+        value,
+        required=("model", "resolution", "focal_length"),
+        optional=("sensor_mm", "principal_point_px"),
+    )
+    resolution = _resolution(keys["resolution"], key.child("resolution"))
+    sensor = _optional(keys, "sensor_mm", key, _sensor)
+    if sensor is not None:
+        _check_aspect(sensor, resolution, key)
+    form, given, tolerance = _focal_length(keys["focal_length"], key.child("focal_length"))
+    if form == "px":
+        focal = given
+    elif sensor is None:
+        raise key.child("sensor_mm").error(f"missing: needed to convert focal_length.{form}")
+    elif form == "mm":
+        focal = focal_px_from_mm(given, sensor[0], resolution[0])
+    else:
+        focal = focal_px_from_35mm_equivalent(given, sensor, resolution)
+    principal = _optional(keys, "principal_point_px", key, _principal_point)
+    if principal is not None:
+        _check_principal_point(principal, resolution, key.child("principal_point_px"))
+    return CameraSpec(
+        model=key.child("model").line(keys["model"]),
+        sensor_mm=sensor,
+        resolution=resolution,
+        focal_px=focal,
+        focal_tolerance=tolerance,
+        principal_point_px=principal,
+        focal_given=(form, given),
+    )
+
+
+def _resolution(value: Any, key: _Key) -> tuple[int, int]:
+    width, height = key.pair(value, "width, height")
+    return (
+        key.integer(width, "pixels", _MAX_RESOLUTION_PX),
+        key.integer(height, "pixels", _MAX_RESOLUTION_PX),
+    )
+
+
+def _sensor(value: Any, key: _Key) -> tuple[float, float]:
+    width, height = key.pair(value, "width, height")
+    hint = "sensor_mm is in millimetres; is this in micrometres or pixels?"
+    return (
+        key.bounded(width, "mm", _MAX_SENSOR_MM, hint=hint),
+        key.bounded(height, "mm", _MAX_SENSOR_MM, hint=hint),
+    )
+
+
+def _check_aspect(sensor: tuple[float, float], resolution: tuple[int, int], key: _Key) -> None:
+    sensor_aspect = sensor[0] / sensor[1]
+    image_aspect = resolution[0] / resolution[1]
+    if abs(sensor_aspect / image_aspect - 1.0) > ASPECT_AGREEMENT:
+        suggested = sensor[0] * resolution[1] / resolution[0]
+        raise key.child("sensor_mm").error(
+            f"aspect {sensor_aspect:.4f} does not match resolution "
+            f"{resolution[0]}x{resolution[1]} (aspect {image_aspect:.4f}); give the area the "
+            f"image covers, e.g. [{sensor[0]:g}, {suggested:.5g}]",
+            list(sensor),
+        )
+
+
+def _focal_length(value: Any, key: _Key) -> tuple[str, float, float]:
+    """(form, value as given, tolerance fraction) read from a ``focal_length`` mapping."""
+    keys = key.mapping(value, required=("tolerance_fraction",), optional=FOCAL_FORMS)
+    forms = [form for form in FOCAL_FORMS if form in keys]
+    if not forms:
+        raise key.error(f"missing: give one of {', '.join(FOCAL_FORMS)}")
+    if len(forms) > 1:
+        raise key.error(
+            f"give only one of {', '.join(FOCAL_FORMS)}", {form: keys[form] for form in forms}
+        )
+    form = forms[0]
+    high = {"mm": _MAX_FOCAL_MM, "equivalent_35mm_mm": _MAX_EQUIVALENT_MM, "px": 1e7}[form]
+    unit = "pixels" if form == "px" else "mm"
+    given = key.child(form).bounded(keys[form], unit, high)
+    return form, given, _tolerance_fraction(keys["tolerance_fraction"], key)
+
+
+def _tolerance_fraction(value: Any, parent: _Key) -> float:
+    key = parent.child("tolerance_fraction")
+    number = key.number(value, "fraction")
+    if not 0.0 <= number < 0.5:
+        raise key.error("must be a fraction in [0, 0.5) -- 0.01 means 1 %", value)
+    return number
+
+
+def _principal_point(value: Any, key: _Key) -> tuple[float, float]:
+    cx, cy = key.pair(value, "cx, cy")
+    return key.number(cx, "pixels"), key.number(cy, "pixels")
+
+
+def _check_principal_point(
+    point: tuple[float, float], resolution: tuple[int, int], key: _Key
+) -> None:
+    if not (0 <= point[0] <= resolution[0] and 0 <= point[1] <= resolution[1]):
+        raise key.error(f"must lie inside the {resolution[0]}x{resolution[1]} image", list(point))
+
+
+def _baseline(value: Any, key: _Key) -> Baseline:
+    keys = key.mapping(value, required=("value_m", "tolerance_m"))
+    hint = "baselines are in metres; is this in centimetres or millimetres?"
+    length = key.child("value_m").bounded(keys["value_m"], "m", _MAX_BASELINE_M, hint=hint)
+    tolerance_key = key.child("tolerance_m")
+    tolerance = tolerance_key.number(keys["tolerance_m"], "m")
+    if not 0.0 <= tolerance < length:
+        raise tolerance_key.error(
+            f"must be >= 0 and smaller than value_m ({length:g} m)", tolerance
+        )
+    return Baseline(value_m=length, tolerance_m=tolerance)
+
+
+def _signed_offset(value: Any, key: _Key) -> float:
+    number = key.number(value, "m")
+    if abs(number) > _MAX_OFFSET_M:
+        raise key.error(f"must be within +-{_MAX_OFFSET_M:g} m (is this in cm or mm?)", value)
+    return number
+
+
+def _back_offset(value: Any, key: _Key) -> tuple[float, float]:
+    keys = key.mapping(value, required=("right_m", "up_m"))
+    return (
+        _signed_offset(keys["right_m"], key.child("right_m")),
+        _signed_offset(keys["up_m"], key.child("up_m")),
+    )
+
+
+def _rangefinder(value: Any, key: _Key) -> RangefinderSpec:
+    keys = key.mapping(value, required=("protocol",), optional=("port", "baud", "offset"))
+    protocol = keys["protocol"]
+    if not isinstance(protocol, str) or not _PROTOCOL_PATTERN.fullmatch(protocol):
+        raise key.child("protocol").error(
+            "must be a lower-case name such as 'manual' (letters, digits, '-', '_')", protocol
+        )
+    port = key.child("port").line(keys["port"]) if "port" in keys else None
+    baud = key.child("baud").integer(keys["baud"], "baud", _MAX_BAUD) if "baud" in keys else None
+    if (port is None) != (baud is None):
+        missing = "baud" if baud is None else "port"
+        raise key.child(missing).error("missing: a serial rangefinder needs both port and baud")
+    return RangefinderSpec(
+        protocol=protocol,
+        port=port,
+        baud=baud,
+        offset_m=_optional(keys, "offset", key, _rangefinder_offset),
+    )
+
+
+def _rangefinder_offset(value: Any, key: _Key) -> tuple[float, float, float]:
+    keys = key.mapping(value, required=("right_m", "up_m", "forward_m"))
+    return (
+        _signed_offset(keys["right_m"], key.child("right_m")),
+        _signed_offset(keys["up_m"], key.child("up_m")),
+        _signed_offset(keys["forward_m"], key.child("forward_m")),
+    )
+
+
+def _nominal_range(value: Any, key: _Key) -> float:
+    return key.bounded(value, "m", _MAX_RANGE_M)
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def rig_to_dict(profile: RigProfile) -> dict[str, Any]:
+    """The profile as plain data in the YAML layout :func:`load_rig` reads."""
+    data: dict[str, Any] = {"version": PROFILE_VERSION, "name": profile.name}
+    if profile.nominal_range_m is not None:
+        data["nominal_range_m"] = profile.nominal_range_m
+    specs = [profile.cameras[role] for role in CAMERA_ROLES]
+    if all(spec == specs[0] for spec in specs):
+        data["camera"] = _camera_to_dict(specs[0])
+    else:
+        data["cameras"] = {role: _camera_to_dict(profile.cameras[role]) for role in CAMERA_ROLES}
+    data["baselines"] = {
+        "C_lr": _baseline_to_dict(profile.baseline_lr),
+        "C_lb": _baseline_to_dict(profile.baseline_lb),
+    }
+    if profile.back_offset_m is not None:
+        right, up = profile.back_offset_m
+        data["back_offset"] = {"right_m": right, "up_m": up}
+    if profile.rangefinder is not None:
+        data["rangefinder"] = _rangefinder_to_dict(profile.rangefinder)
+    if profile.notes:
+        data["notes"] = profile.notes
+    return data
+
+
+def dump_rig(profile: RigProfile) -> str:
+    """The profile as YAML text that :func:`load_rig` reads back to an equal profile."""
+    return yaml.safe_dump(
+        rig_to_dict(profile), sort_keys=False, default_flow_style=None, allow_unicode=True
+    )
+
+
+def _camera_to_dict(spec: CameraSpec) -> dict[str, Any]:
+    form, value = spec.focal_given or ("px", spec.focal_px)
+    data: dict[str, Any] = {"model": spec.model}
+    if spec.sensor_mm is not None:
+        data["sensor_mm"] = list(spec.sensor_mm)
+    data["resolution"] = list(spec.resolution)
+    data["focal_length"] = {form: value, "tolerance_fraction": spec.focal_tolerance}
+    if spec.principal_point_px is not None:
+        data["principal_point_px"] = list(spec.principal_point_px)
+    return data
+
+
+def _baseline_to_dict(baseline: Baseline) -> dict[str, float]:
+    return {"value_m": baseline.value_m, "tolerance_m": baseline.tolerance_m}
+
+
+def _rangefinder_to_dict(spec: RangefinderSpec) -> dict[str, Any]:
+    data: dict[str, Any] = {"protocol": spec.protocol}
+    if spec.port is not None:
+        data["port"] = spec.port
+        data["baud"] = spec.baud
+    if spec.offset_m is not None:
+        right, up, forward = spec.offset_m
+        data["offset"] = {"right_m": right, "up_m": up, "forward_m": forward}
+    return data

@@ -1,0 +1,592 @@
+"""The rig geometry check: error budget, geometry warnings and the capture (EXIF) check.
+
+Notation (paper, Sec. 2-3): z depth in metres, f focal length in pixels, C_lr the
+left-right baseline and C_lb the left-back distance along the viewing axis, in metres.
+
+Error budget, each source alone, to first order (|dz| in metres):
+
+* disparity d = f * C_lr / z (pixels)
+* a disparity error dd (pixels):             dz = z**2 * dd / (f * C_lr)
+* a relative error e in f, C_lr or C_lb:     dz = z * e
+* an error dq in the global disparity offset: dz = z**2 * dq / (f * C_lr)
+
+The offset q is what the back camera fixes (paper Sec. 3, ambiguity removal); C_lb
+enters through the anchor depth z = C_lb / (m_l / m_b - 1), so its relative error
+carries over to z. The sources are independent, so the total is their root-sum-square.
+This is the plain-stereo view: where the back camera's anchor lies at the same depth,
+errors in f and C_lr cancel there (docs/rig-profiles.md, "Reading the error budget").
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from rigkit.errors import InputError
+from rigkit.exif import ExifInfo, read_exif
+from rigkit.rig import (
+    CAMERA_ROLES,
+    Baseline,
+    CameraSpec,
+    RigProfile,
+    focal_px_from_35mm_equivalent,
+    focal_px_from_mm,
+    fov_deg,
+    rig_to_dict,
+)
+
+DISPARITY_ERROR_PX = 0.25
+"""Default disparity (matching) error, pixels."""
+OFFSET_ERROR_PX = 0.5
+"""Default error of the global disparity offset after ambiguity removal, pixels."""
+BUDGET_RANGES_M = (100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0)
+TARGET_FRACTIONS = (0.01, 0.03)
+"""Relative depth errors whose onset range the check reports (1 % and 3 %)."""
+RELATIVE_ROTATION_DEG = 1.0
+"""Rotation between cameras assumed for the affine residual (paper: up to 1 deg about x, y)."""
+
+STEREO_LIMIT = 0.01
+"""Warn when the disparity error alone exceeds this fraction of the depth."""
+ANCHOR_LIMIT = 0.10
+"""Warn when one pair of back-camera matches fixes the depth only to worse than this."""
+AFFINE_LIMIT = 0.01
+"""Warn when the non-affine residual exceeds this fraction of the disparity."""
+OVERLAP_LIMIT = 0.5
+"""Warn when the left and right views overlap by less than this fraction of the width."""
+EXIF_MM_STEP = 0.1
+"""EXIF FocalLength is usually recorded to 0.1 mm; FocalLengthIn35mmFilm to whole mm."""
+
+
+# --------------------------------------------------------------------------- formulas
+
+
+def disparity_px(range_m: float, focal_px: float, baseline_m: float) -> float:
+    """Disparity d = f * C / z in pixels (paper Sec. 3, depth-to-disparity formula)."""
+    return focal_px * baseline_m / range_m
+
+
+def triangulation_angle_deg(range_m: float, baseline_m: float) -> float:
+    """Angle in degrees between the two rays to a point on the left camera's axis at ``range_m``."""
+    return math.degrees(math.atan2(baseline_m, range_m))
+
+
+def depth_error_from_disparity(
+    range_m: float, focal_px: float, baseline_m: float, disparity_error_px: float
+) -> float:
+    """Depth error in metres from a disparity error: z**2 * dd / (f * C_lr).
+
+    Also the depth error from an error of the global disparity offset.
+    """
+    return range_m**2 * disparity_error_px / (focal_px * baseline_m)
+
+
+def depth_error_from_relative(range_m: float, relative_error: float) -> float:
+    """Depth error in metres from a relative error of f, C_lr or C_lb: z * e."""
+    return range_m * relative_error
+
+
+def back_shift_px(range_m: float, baseline_lb_m: float, span_px: float) -> float:
+    """How much shorter a ``span_px`` distance in the left view is in the back view, pixels.
+
+    m_l - m_b = m_l * C_lb / (z + C_lb) for two points at depth z (paper Prop. 2).
+    """
+    return span_px * baseline_lb_m / (range_m + baseline_lb_m)
+
+
+def anchor_error_fraction(
+    range_m: float, baseline_lb_m: float, span_px: float, match_error_px: float
+) -> float:
+    """Relative depth error of one back-camera anchor, z = C_lb / (m_l / m_b - 1).
+
+    For two left-view points ``span_px`` apart whose back-view matches are each off by
+    ``match_error_px``: m_b is off by sqrt(2) * that, so dz / z = sqrt(2) * dm / (m_l - m_b).
+    """
+    return math.sqrt(2.0) * match_error_px / back_shift_px(range_m, baseline_lb_m, span_px)
+
+
+def affine_residual_px(focal_px: float, image_size: tuple[int, int], rotation_deg: float) -> float:
+    """Largest non-affine image shift, pixels, that a small rotation leaves at the corners.
+
+    A rotation g about x maps u to u * cos(t) / cos(t - g) ~ u - g * u * v / f (proof of
+    Prop. 1): a bilinear term, at the corners g * (w / 2) * (h / 2) / f.
+    """
+    width, height = image_size
+    return math.radians(rotation_deg) * (width / 2.0) * (height / 2.0) / focal_px
+
+
+@dataclass(frozen=True)
+class ErrorModel:
+    """The inputs of the error budget (pixels, fractions and Baseline in metres)."""
+
+    focal_px: float
+    focal_tolerance: float
+    baseline_lr: Baseline
+    baseline_lb: Baseline
+    disparity_error_px: float = DISPARITY_ERROR_PX
+    offset_error_px: float = OFFSET_ERROR_PX
+
+    @classmethod
+    def from_profile(
+        cls,
+        profile: RigProfile,
+        disparity_error_px: float = DISPARITY_ERROR_PX,
+        offset_error_px: float = OFFSET_ERROR_PX,
+    ) -> ErrorModel:
+        """The model for a profile (its focal length, tolerances and baselines)."""
+        return cls(
+            focal_px=profile.focal_px,
+            focal_tolerance=profile.focal_tolerance,
+            baseline_lr=profile.baseline_lr,
+            baseline_lb=profile.baseline_lb,
+            disparity_error_px=disparity_error_px,
+            offset_error_px=offset_error_px,
+        )
+
+    @property
+    def quadratic_term(self) -> float:
+        """a in total(z) = z * sqrt((a z)**2 + b**2): disparity and offset errors, 1/m."""
+        pixels = math.hypot(self.disparity_error_px, self.offset_error_px)
+        return pixels / (self.focal_px * self.baseline_lr.value_m)
+
+    @property
+    def constant_term(self) -> float:
+        """b in total(z) = z * sqrt((a z)**2 + b**2): f, C_lr and C_lb tolerances."""
+        return math.hypot(
+            self.focal_tolerance,
+            self.baseline_lr.relative_tolerance,
+            self.baseline_lb.relative_tolerance,
+        )
+
+
+@dataclass(frozen=True)
+class BudgetRow:
+    """Depth errors at one range, metres, each source alone, and their root-sum-square."""
+
+    range_m: float
+    disparity_px: float
+    from_disparity_m: float
+    from_baseline_lr_m: float
+    from_baseline_lb_m: float
+    from_focal_m: float
+    from_offset_m: float
+
+    @property
+    def total_m(self) -> float:
+        """Root-sum-square of the independent sources, metres."""
+        return math.sqrt(
+            self.from_disparity_m**2
+            + self.from_baseline_lr_m**2
+            + self.from_baseline_lb_m**2
+            + self.from_focal_m**2
+            + self.from_offset_m**2
+        )
+
+    @property
+    def total_fraction(self) -> float:
+        """``total_m`` as a fraction of the range."""
+        return self.total_m / self.range_m
+
+
+def budget_row(model: ErrorModel, range_m: float) -> BudgetRow:
+    """The error budget at one range."""
+    lr = model.baseline_lr.value_m
+    return BudgetRow(
+        range_m=range_m,
+        disparity_px=disparity_px(range_m, model.focal_px, lr),
+        from_disparity_m=depth_error_from_disparity(
+            range_m, model.focal_px, lr, model.disparity_error_px
+        ),
+        from_baseline_lr_m=depth_error_from_relative(range_m, model.baseline_lr.relative_tolerance),
+        from_baseline_lb_m=depth_error_from_relative(range_m, model.baseline_lb.relative_tolerance),
+        from_focal_m=depth_error_from_relative(range_m, model.focal_tolerance),
+        from_offset_m=depth_error_from_disparity(
+            range_m, model.focal_px, lr, model.offset_error_px
+        ),
+    )
+
+
+def range_reaching(model: ErrorModel, fraction: float) -> float | None:
+    """The range in metres at which the total relative error reaches ``fraction``.
+
+    total / z = sqrt((a z)**2 + b**2), so z = sqrt(fraction**2 - b**2) / a. Returns 0.0
+    when the range-independent part b alone reaches it, None when it is never reached.
+    """
+    a, b = model.quadratic_term, model.constant_term
+    if b >= fraction:
+        return 0.0
+    if a == 0.0:
+        return None
+    return math.sqrt(fraction**2 - b**2) / a
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+@dataclass(frozen=True)
+class RangeGeometry:
+    """The rig's geometry at one range (lengths in m, angles in degrees, shifts in px)."""
+
+    range_m: float
+    disparity_px: float
+    baseline_ratio_lr: float
+    triangulation_angle_deg: float
+    overlap_fraction: float
+    back_scale_change: float
+    back_shift_px: float
+    anchor_error_fraction: float
+    affine_residual_px: float
+
+    @property
+    def affine_error_fraction(self) -> float:
+        """The affine residual as a fraction of the disparity (~ the depth error it causes)."""
+        return self.affine_residual_px / self.disparity_px
+
+
+def geometry_at(profile: RigProfile, range_m: float, match_error_px: float) -> RangeGeometry:
+    """Geometry at ``range_m``; the back-camera anchor uses pairs half the image width apart."""
+    focal = profile.focal_px
+    width, height = profile.image_size
+    lr, lb = profile.baseline_lr.value_m, profile.baseline_lb.value_m
+    disparity = disparity_px(range_m, focal, lr)
+    return RangeGeometry(
+        range_m=range_m,
+        disparity_px=disparity,
+        baseline_ratio_lr=lr / range_m,
+        triangulation_angle_deg=triangulation_angle_deg(range_m, lr),
+        overlap_fraction=max(0.0, 1.0 - disparity / width),
+        back_scale_change=lb / range_m,
+        back_shift_px=back_shift_px(range_m, lb, width / 2.0),
+        anchor_error_fraction=anchor_error_fraction(range_m, lb, width / 2.0, match_error_px),
+        affine_residual_px=affine_residual_px(focal, (width, height), RELATIVE_ROTATION_DEG),
+    )
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One warning: a stable ``code`` for machines, a one-line ``message`` for people.
+
+    ``frame`` (left/right/back) and ``field`` (EXIF tag) are set for capture findings.
+    """
+
+    code: str
+    message: str
+    frame: str | None = None
+    field: str | None = None
+
+
+def geometry_warnings(
+    profile: RigProfile, geometries: Sequence[RangeGeometry], model: ErrorModel
+) -> list[Finding]:
+    """Warnings where the geometry cannot deliver depth at the chosen ranges.
+
+    Per range: too little left/right overlap, C_lr or C_lb too small. Once, at the
+    farthest range (where it is worst): a field of view too wide for the affine model.
+    """
+    findings: list[Finding] = []
+    for geometry in geometries:
+        findings += _range_warnings(profile, geometry, model)
+    if geometries:
+        farthest = max(geometries, key=lambda geometry: geometry.range_m)
+        if farthest.affine_error_fraction > AFFINE_LIMIT:
+            findings.append(_fov_warning(profile, farthest, model))
+    return findings
+
+
+def _range_warnings(
+    profile: RigProfile, geometry: RangeGeometry, model: ErrorModel
+) -> list[Finding]:
+    z = geometry.range_m
+    lr, lb = profile.baseline_lr.value_m, profile.baseline_lb.value_m
+    stereo = depth_error_from_disparity(z, model.focal_px, lr, model.disparity_error_px) / z
+    found = []
+    if geometry.overlap_fraction < OVERLAP_LIMIT:
+        found.append(
+            Finding(
+                "overlap",
+                f"at {z:g} m the left and right views overlap by only "
+                f"{100 * geometry.overlap_fraction:.0f} % (disparity {geometry.disparity_px:,.0f}"
+                f" px of {profile.image_size[0]} px): too close for C_lr = {lr:g} m",
+            )
+        )
+    if stereo > STEREO_LIMIT:
+        found.append(
+            Finding(
+                "C_lr_too_small",
+                f"at {z:g} m a {model.disparity_error_px:g} px disparity error alone is "
+                f"{100 * stereo:.1f} % of the depth (disparity {geometry.disparity_px:.0f} px): "
+                f"C_lr = {lr:g} m is too small for this range and focal length",
+            )
+        )
+    if geometry.anchor_error_fraction > ANCHOR_LIMIT:
+        found.append(
+            Finding(
+                "C_lb_too_small",
+                f"at {z:g} m the back view is only {100 * geometry.back_scale_change:.2f} % "
+                f"smaller ({geometry.back_shift_px:.1f} px over half the image width): one pair "
+                f"of back-camera matches fixes the depth to +-"
+                f"{100 * geometry.anchor_error_fraction:.0f} % only; "
+                f"C_lb = {lb:g} m is too small for this range",
+            )
+        )
+    return found
+
+
+def _fov_warning(profile: RigProfile, geometry: RangeGeometry, model: ErrorModel) -> Finding:
+    width, height = profile.image_size
+    return Finding(
+        "fov_too_wide",
+        f"the {fov_deg(model.focal_px, width):.1f} x {fov_deg(model.focal_px, height):.1f} deg"
+        f" field of view is too wide for the near-orthographic (affine) rectification: a "
+        f"{RELATIVE_ROTATION_DEG:g} deg rotation between cameras leaves up to "
+        f"{geometry.affine_residual_px:.1f} px of non-affine shift at the corners, "
+        f"{100 * geometry.affine_error_fraction:.1f} % of the {geometry.disparity_px:.0f} px "
+        f"disparity at {geometry.range_m:g} m",
+    )
+
+
+# --------------------------------------------------------------------------- capture (EXIF)
+
+
+_CONSISTENT_FIELDS = (
+    ("focal_length_mm", "FocalLength"),
+    ("focal_length_35mm_mm", "FocalLengthIn35mmFilm"),
+    ("exposure_time_s", "ExposureTime"),
+    ("f_number", "FNumber"),
+    ("iso", "ISOSpeedRatings"),
+)
+
+
+def check_capture(profile: RigProfile, paths: Sequence[str | Path]) -> list[Finding]:
+    """Check the left, right and back frames' EXIF against each other and the profile.
+
+    The three frames must share focal length and exposure (time, aperture, ISO); each
+    frame's focal length must match its camera's within the profile's tolerance and its
+    image size the profile's resolution. Returns one Finding per problem (empty: all
+    good); InputError if there are not three paths or a file cannot be read.
+    """
+    if len(paths) != len(CAMERA_ROLES):
+        raise InputError(f"a capture is three images (left, right, back), got {len(paths)}")
+    frames = {role: read_exif(path) for role, path in zip(CAMERA_ROLES, paths, strict=True)}
+    findings = [
+        Finding("capture.no_exif", f"{_frame(role, info)}: no EXIF found; nothing checked", role)
+        for role, info in frames.items()
+        if not info.has_exif
+    ]
+    present = {role: info for role, info in frames.items() if info.has_exif}
+    for attribute, tag in _CONSISTENT_FIELDS:
+        findings += _consistency(present, attribute, tag)
+    for role, info in present.items():
+        findings += _against_profile(role, info, profile.cameras[role])
+    return findings
+
+
+def _frame(role: str, info: ExifInfo) -> str:
+    return f"{role} frame ({info.path.name})"
+
+
+def _consistency(frames: dict[str, ExifInfo], attribute: str, tag: str) -> list[Finding]:
+    """Findings where frames disagree on one EXIF field, or only some record it."""
+    values = {role: getattr(info, attribute) for role, info in frames.items()}
+    known = {role: value for role, value in values.items() if value is not None}
+    if not known:
+        return []
+    reference_role, reference = next(iter(known.items()))
+    shown = _format_field(tag, reference)
+    found = []
+    for role, value in values.items():
+        if value is None:
+            message = (
+                f"{_frame(role, frames[role])}: no {tag} in EXIF, {reference_role} has {shown}"
+            )
+            found.append(Finding("capture.missing_field", message, role, tag))
+        elif not math.isclose(value, reference, rel_tol=1e-6):
+            message = (
+                f"{_frame(role, frames[role])}: {tag} {_format_field(tag, value)} differs "
+                f"from the {reference_role} frame's {shown}"
+            )
+            found.append(Finding("capture.mismatch", message, role, tag))
+    return found
+
+
+def _format_field(tag: str, value: float) -> str:
+    if tag == "ExposureTime":
+        return f"1/{1 / value:.4g} s" if value < 1 else f"{value:g} s"
+    if tag == "FNumber":
+        return f"f/{value:g}"
+    if tag == "ISOSpeedRatings":
+        return f"ISO {value:g}"
+    return f"{value:g} mm"
+
+
+def _against_profile(role: str, info: ExifInfo, camera: CameraSpec) -> list[Finding]:
+    return [
+        finding
+        for finding in (
+            _focal_finding(role, info, camera),
+            _size_finding(role, info, camera),
+            _model_finding(role, info, camera),
+        )
+        if finding is not None
+    ]
+
+
+def exif_focal_px(info: ExifInfo, camera: CameraSpec) -> tuple[str, float, float] | None:
+    """A frame's focal length in pixels from EXIF, or None if no usable field.
+
+    Returns (EXIF tag used, pixels, EXIF rounding as a fraction). The tag is the one
+    matching how the profile states its focal length (35 mm-equivalent or real mm),
+    so both sides go through the same conversion; real mm needs ``sensor_mm``.
+    """
+    mm = None
+    if info.focal_length_mm is not None and camera.sensor_mm is not None:
+        pixels = focal_px_from_mm(info.focal_length_mm, camera.sensor_mm[0], camera.resolution[0])
+        mm = ("FocalLength", pixels, EXIF_MM_STEP / 2 / info.focal_length_mm)
+    equivalent = None
+    if info.focal_length_35mm_mm is not None:
+        pixels = focal_px_from_35mm_equivalent(
+            info.focal_length_35mm_mm, camera.sensor_mm, camera.resolution
+        )
+        equivalent = ("FocalLengthIn35mmFilm", pixels, 0.5 / info.focal_length_35mm_mm)
+    given_as_equivalent = camera.focal_given is not None and camera.focal_given[0].startswith(
+        "equivalent"
+    )
+    preferred = (equivalent, mm) if given_as_equivalent else (mm, equivalent)
+    return next((choice for choice in preferred if choice is not None), None)
+
+
+def _focal_finding(role: str, info: ExifInfo, camera: CameraSpec) -> Finding | None:
+    measured = exif_focal_px(info, camera)
+    if measured is None:
+        why = "the profile has no sensor_mm" if info.focal_length_mm else "EXIF has none"
+        message = f"{_frame(role, info)}: focal length not checked ({why})"
+        return Finding("capture.focal_unchecked", message, role, "FocalLength")
+    tag, pixels, rounding = measured
+    off = pixels / camera.focal_px - 1.0
+    allowed = camera.focal_tolerance + rounding
+    if abs(off) <= allowed:
+        return None
+    recorded = info.focal_length_35mm_mm if tag == "FocalLengthIn35mmFilm" else info.focal_length_mm
+    message = (
+        f"{_frame(role, info)}: {tag} {recorded:g} mm is {pixels:,.0f} px, "
+        f"{100 * off:+.1f} % off the profile's {camera.focal_px:,.0f} px "
+        f"(tolerance {100 * camera.focal_tolerance:g} %)"
+    )
+    return Finding("capture.focal_vs_profile", message, role, tag)
+
+
+def _size_finding(role: str, info: ExifInfo, camera: CameraSpec) -> Finding | None:
+    expected = camera.resolution
+    if info.image_size_px is None:
+        message = f"{_frame(role, info)}: image size not recorded in EXIF; not checked"
+        return Finding("capture.size_unchecked", message, role, "ExifImageWidth")
+    if info.image_size_px == expected:
+        return None
+    width, height = info.image_size_px
+    rotated = " (rotated to portrait?)" if (height, width) == expected else ""
+    message = (
+        f"{_frame(role, info)}: image size {width}x{height} differs from the profile's "
+        f"{expected[0]}x{expected[1]}{rotated}"
+    )
+    return Finding("capture.size_vs_profile", message, role, "ExifImageWidth")
+
+
+def _model_finding(role: str, info: ExifInfo, camera: CameraSpec) -> Finding | None:
+    if info.model is None:
+        return None
+    recorded, expected = _words(info.model), _words(camera.model)
+    if recorded <= expected or expected <= recorded:
+        return None
+    message = (
+        f"{_frame(role, info)}: camera model {info.model!r} is not the profile's {camera.model!r}"
+    )
+    return Finding("capture.model_vs_profile", message, role, "Model")
+
+
+def _words(text: str) -> set[str]:
+    """Lower-case words and numbers: 'COOLPIX P1000' -> {'coolpix', 'p1000'}."""
+    return set(re.findall(r"[a-z0-9]+", text.lower()))
+
+
+# --------------------------------------------------------------------------- the whole check
+
+
+@dataclass(frozen=True)
+class RigCheck:
+    """Everything ``rigkit rig check`` reports for one profile."""
+
+    profile: RigProfile
+    model: ErrorModel
+    geometry: tuple[RangeGeometry, ...]
+    budget: tuple[BudgetRow, ...]
+    reach_m: tuple[tuple[float, float | None], ...]
+    findings: tuple[Finding, ...]
+
+    @property
+    def straight_line_lb_m(self) -> float | None:
+        """The straight left-to-back distance implied by C_lb and the back offset, metres."""
+        if self.profile.back_offset_m is None:
+            return None
+        right, up = self.profile.back_offset_m
+        return math.sqrt(self.profile.baseline_lb.value_m**2 + right**2 + up**2)
+
+
+def check_rig(
+    profile: RigProfile,
+    ranges_m: Sequence[float],
+    disparity_error_px: float = DISPARITY_ERROR_PX,
+    offset_error_px: float = OFFSET_ERROR_PX,
+    capture: Sequence[str | Path] | None = None,
+) -> RigCheck:
+    """Run the geometry check, the error budget and (with ``capture``) the EXIF check."""
+    for value in ranges_m:
+        if not value > 0:
+            raise InputError(f"ranges must be > 0 m, got {value:g}")
+    model = ErrorModel.from_profile(profile, disparity_error_px, offset_error_px)
+    geometry = tuple(geometry_at(profile, z, disparity_error_px) for z in ranges_m)
+    findings = geometry_warnings(profile, geometry, model)
+    if capture is not None:
+        findings += check_capture(profile, capture)
+    return RigCheck(
+        profile=profile,
+        model=model,
+        geometry=geometry,
+        budget=tuple(budget_row(model, z) for z in BUDGET_RANGES_M),
+        reach_m=tuple((p, range_reaching(model, p)) for p in TARGET_FRACTIONS),
+        findings=tuple(findings),
+    )
+
+
+def check_to_dict(check: RigCheck) -> dict[str, Any]:
+    """The check as JSON-ready data (lengths in m, angles in degrees, fractions not %)."""
+    profile, model = check.profile, check.model
+    width, height = profile.image_size
+    return {
+        "profile": {"source": str(profile.source), **rig_to_dict(profile)},
+        "focal_px": model.focal_px,
+        "image_size_px": [width, height],
+        "fov_deg": {
+            "horizontal": fov_deg(model.focal_px, width),
+            "vertical": fov_deg(model.focal_px, height),
+            "diagonal": fov_deg(model.focal_px, math.hypot(width, height)),
+        },
+        "straight_line_lb_m": check.straight_line_lb_m,
+        "assumptions": {
+            "disparity_error_px": model.disparity_error_px,
+            "offset_error_px": model.offset_error_px,
+            "focal_tolerance": model.focal_tolerance,
+            "relative_rotation_deg": RELATIVE_ROTATION_DEG,
+        },
+        "geometry": [
+            {**asdict(g), "affine_error_fraction": g.affine_error_fraction} for g in check.geometry
+        ],
+        "error_budget": [
+            {**asdict(row), "total_m": row.total_m, "total_fraction": row.total_fraction}
+            for row in check.budget
+        ],
+        "range_reaching_m": {f"{p:g}": z for p, z in check.reach_m},
+        "warnings": [asdict(finding) for finding in check.findings],
+    }

@@ -1,0 +1,332 @@
+"""The rig check: error budget against the formulas, geometry warnings, EXIF capture check."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from rigkit.cli import main
+from rigkit.errors import InputError
+from rigkit.exif import read_exif
+from rigkit.rig import Baseline, load_rig
+from rigkit.rigcheck import (
+    ErrorModel,
+    affine_residual_px,
+    anchor_error_fraction,
+    back_shift_px,
+    budget_row,
+    check_capture,
+    check_rig,
+    depth_error_from_disparity,
+    disparity_px,
+    range_reaching,
+    triangulation_angle_deg,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
+VEHICLE = ROOT / "rigs" / "vehicle-2m.yaml"
+SYNTHETIC = ROOT / "rigs" / "synthetic.yaml"
+P1000_FOCAL_PX = 400.0 * 1.25 * 4608 / math.hypot(36.0, 24.0)  # 53,251.2 px
+
+Image = pytest.importorskip("PIL.Image")
+IFDRational = pytest.importorskip("PIL.TiffImagePlugin").IFDRational
+
+
+def _model(**changes: Any) -> ErrorModel:
+    values: dict[str, Any] = {
+        "focal_px": P1000_FOCAL_PX,
+        "focal_tolerance": 0.01,
+        "baseline_lr": Baseline(2.0, 0.02),
+        "baseline_lb": Baseline(2.0, 0.02),
+        "disparity_error_px": 0.25,
+        "offset_error_px": 0.5,
+    }
+    values.update(changes)
+    return ErrorModel(**values)
+
+
+def _profile(tmp_path: Path, focal_px: float, lr: float, lb: float) -> Path:
+    path = tmp_path / "rig.yaml"
+    path.write_text(
+        f"""version: 1
+name: test
+camera:
+  model: test camera
+  resolution: [4608, 3456]
+  focal_length: {{px: {focal_px}, tolerance_fraction: 0.005}}
+baselines:
+  C_lr: {{value_m: {lr}, tolerance_m: 0.001}}
+  C_lb: {{value_m: {lb}, tolerance_m: 0.001}}
+""",
+        encoding="utf-8",
+    )
+    return path
+
+
+# --------------------------------------------------------------------------- formulas
+
+
+def test_disparity_and_triangulation_angle_of_the_synthetic_protocol() -> None:
+    # Paper Sec. 4.2: baseline/depth 1/150, intersection angle ~0.382 deg.
+    focal = 2304 / math.tan(math.radians(3.0))
+    assert disparity_px(300.0, focal, 2.0) == pytest.approx(293.09, abs=0.01)
+    assert triangulation_angle_deg(300.0, 2.0) == pytest.approx(0.382, abs=5e-4)
+
+
+def test_depth_error_from_disparity_hand_computed() -> None:
+    # dz = z^2 dd / (f C_lr) = 300^2 * 0.25 / (53,251.2 * 2) = 22,500 / 106,502.4 = 0.21126 m.
+    assert depth_error_from_disparity(300.0, P1000_FOCAL_PX, 2.0, 0.25) == pytest.approx(
+        0.21126, abs=1e-5
+    )
+
+
+@pytest.mark.parametrize("range_m", [100.0, 250.0, 500.0])
+def test_budget_row_follows_the_formulas(range_m: float) -> None:
+    model = _model()
+    row = budget_row(model, range_m)
+    f_c = P1000_FOCAL_PX * 2.0
+    assert row.disparity_px == pytest.approx(f_c / range_m)
+    assert row.from_disparity_m == pytest.approx(range_m**2 * 0.25 / f_c)
+    assert row.from_offset_m == pytest.approx(range_m**2 * 0.5 / f_c)
+    assert row.from_baseline_lr_m == pytest.approx(range_m * 0.02 / 2.0)
+    assert row.from_baseline_lb_m == pytest.approx(range_m * 0.02 / 2.0)
+    assert row.from_focal_m == pytest.approx(range_m * 0.01)
+    parts = (row.from_disparity_m, row.from_offset_m, 3 * (range_m * 0.01) ** 2)
+    expected = math.sqrt(parts[0] ** 2 + parts[1] ** 2 + parts[2])
+    assert row.total_m == pytest.approx(expected)
+    assert row.total_fraction == pytest.approx(expected / range_m)
+
+
+def test_budget_at_250_m_hand_computed() -> None:
+    row = budget_row(_model(), 250.0)
+    assert row.from_disparity_m == pytest.approx(0.1467, abs=1e-4)  # 15,625 / 106,502.4
+    assert row.from_focal_m == pytest.approx(2.5)
+    assert row.total_m == pytest.approx(4.34, abs=0.005)
+
+
+def test_range_reaching_is_where_the_total_crosses_the_fraction() -> None:
+    model = _model(
+        focal_tolerance=0.002, baseline_lr=Baseline(2.0, 0.002), baseline_lb=Baseline(2.0, 0.002)
+    )
+    for fraction in (0.01, 0.03):
+        range_m = range_reaching(model, fraction)
+        assert range_m is not None and range_m > 0
+        assert budget_row(model, range_m).total_fraction == pytest.approx(fraction)
+        assert budget_row(model, 0.9 * range_m).total_fraction < fraction
+
+
+def test_range_reaching_when_tolerances_alone_exceed_it() -> None:
+    # b = sqrt(3) * 1 % = 1.73 % > 1 %: exceeded at every range.
+    assert range_reaching(_model(), 0.01) == 0.0
+    assert range_reaching(_model(), 0.03) == pytest.approx(4666.7, abs=0.1)
+
+
+def test_range_reaching_without_range_dependent_errors_is_never() -> None:
+    model = _model(disparity_error_px=0.0, offset_error_px=0.0)
+    assert range_reaching(model, 0.03) is None
+
+
+def test_back_camera_anchor_hand_computed() -> None:
+    # m_l - m_b = 2304 * 2 / 302 = 15.258 px; one pair: sqrt(2) * 0.25 / 15.258 = 2.32 %.
+    assert back_shift_px(300.0, 2.0, 2304.0) == pytest.approx(15.258, abs=1e-3)
+    assert anchor_error_fraction(300.0, 2.0, 2304.0, 0.25) == pytest.approx(0.02317, abs=1e-5)
+
+
+def test_affine_residual_hand_computed() -> None:
+    # 1 deg * 2304 * 1728 / 53,251.2 = 0.0174533 * 74.765 = 1.3049 px.
+    assert affine_residual_px(P1000_FOCAL_PX, (4608, 3456), 1.0) == pytest.approx(1.3049, abs=1e-4)
+
+
+# --------------------------------------------------------------------------- geometry warnings
+
+
+@pytest.mark.parametrize("path", [P1000, VEHICLE, SYNTHETIC], ids=lambda path: path.stem)
+def test_shipped_rigs_work_from_100_to_500_m(path: Path) -> None:
+    check = check_rig(load_rig(path), [100.0, 200.0, 300.0, 400.0, 500.0])
+    assert check.findings == ()
+    assert [row.range_m for row in check.budget] == [100.0 + 50 * i for i in range(9)]
+
+
+def test_small_baselines_and_wide_fov_are_flagged(tmp_path: Path) -> None:
+    # 20 deg FOV (f = 13,000 px), C_lr 0.5 m, C_lb 0.3 m.
+    profile = load_rig(_profile(tmp_path, 13_000, 0.5, 0.3))
+    check = check_rig(profile, [100.0, 500.0])
+    codes = [finding.code for finding in check.findings]
+    # At 100 m: 0.25 px is 0.38 % (fine), one anchor pair 5.1 % (fine); at 500 m both fail.
+    assert codes == ["C_lr_too_small", "C_lb_too_small", "fov_too_wide"]
+    assert "at 500 m" in check.findings[0].message
+    assert "C_lb = 0.3 m is too small" in check.findings[1].message
+    assert "20.1 x 15.1 deg" in check.findings[2].message
+
+
+def test_too_close_for_overlap_is_flagged(tmp_path: Path) -> None:
+    profile = load_rig(_profile(tmp_path, 53_000, 2.0, 2.0))
+    check = check_rig(profile, [40.0])  # disparity 2,650 px of 4,608: 42 % overlap
+    assert [finding.code for finding in check.findings] == ["overlap"]
+    assert "overlap by only 42 %" in check.findings[0].message
+
+
+def test_ranges_must_be_positive() -> None:
+    with pytest.raises(InputError, match="ranges must be > 0 m"):
+        check_rig(load_rig(P1000), [0.0])
+
+
+# --------------------------------------------------------------------------- EXIF capture check
+
+
+def _frame(path: Path, **changes: Any) -> Path:
+    """A tiny image whose EXIF says P1000 at 400 mm-eq, 1/500 s, f/5.6, ISO 200, 4608x3456."""
+    tags: dict[str, Any] = {
+        "model": "COOLPIX P1000",
+        "focal_mm": IFDRational(719, 10),
+        "focal_35mm": 400,
+        "exposure": IFDRational(1, 500),
+        "f_number": IFDRational(56, 10),
+        "iso": 200,
+        "size": (4608, 3456),
+    }
+    tags.update(changes)
+    exif = Image.Exif()
+    exif[0x010F] = "NIKON"
+    exif[0x0110] = tags["model"]
+    sub = exif.get_ifd(0x8769)
+    for tag, key in (
+        (0x920A, "focal_mm"),
+        (0xA405, "focal_35mm"),
+        (0x829A, "exposure"),
+        (0x829D, "f_number"),
+        (0x8827, "iso"),
+    ):
+        if tags[key] is not None:
+            sub[tag] = tags[key]
+    sub[0xA002], sub[0xA003] = tags["size"]
+    Image.new("L", (8, 6)).save(path, exif=exif.tobytes())
+    return path
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".tif"])
+def test_read_exif(tmp_path: Path, suffix: str) -> None:
+    info = read_exif(_frame(tmp_path / f"frame{suffix}"))
+    assert (info.make, info.model) == ("NIKON", "COOLPIX P1000")
+    assert info.focal_length_mm == pytest.approx(71.9)
+    assert info.focal_length_35mm_mm == 400.0
+    assert info.exposure_time_s == pytest.approx(0.002)
+    assert info.f_number == pytest.approx(5.6)
+    assert info.iso == 200.0
+    assert info.image_size_px == (4608, 3456)
+    assert info.has_exif
+
+
+def test_read_exif_without_exif(tmp_path: Path) -> None:
+    path = tmp_path / "plain.png"
+    Image.new("L", (8, 6)).save(path)
+    assert not read_exif(path).has_exif
+
+
+def test_read_exif_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match=r"gone\.jpg: no such image"):
+        read_exif(tmp_path / "gone.jpg")
+
+
+def test_matching_capture_has_no_findings(tmp_path: Path) -> None:
+    frames = [_frame(tmp_path / name) for name in ("L.jpg", "R.jpg", "B.tif")]
+    assert check_capture(load_rig(P1000), frames) == []
+
+
+def test_capture_mismatches_name_frame_and_field(tmp_path: Path) -> None:
+    frames = [
+        _frame(tmp_path / "L.jpg"),
+        _frame(tmp_path / "R.jpg", exposure=IFDRational(1, 250)),
+        _frame(tmp_path / "B.jpg", focal_mm=IFDRational(539, 10), focal_35mm=300),
+    ]
+    findings = check_capture(load_rig(P1000), frames)
+    found = {(f.code, f.frame, f.field) for f in findings}
+    assert found == {
+        ("capture.mismatch", "back", "FocalLength"),
+        ("capture.mismatch", "back", "FocalLengthIn35mmFilm"),
+        ("capture.mismatch", "right", "ExposureTime"),
+        ("capture.focal_vs_profile", "back", "FocalLengthIn35mmFilm"),
+    }
+    messages = "\n".join(f.message for f in findings)
+    assert (
+        "right frame (R.jpg): ExposureTime 1/250 s differs from the left frame's 1/500 s"
+        in messages
+    )
+    assert "back frame (B.jpg): FocalLengthIn35mmFilm 300 mm is 39,938 px, -25.0 %" in messages
+
+
+def test_capture_size_model_and_missing_fields(tmp_path: Path) -> None:
+    frames = [
+        _frame(tmp_path / "L.jpg", size=(3456, 4608)),
+        _frame(tmp_path / "R.jpg", model="D850"),
+        _frame(tmp_path / "B.jpg", iso=None),
+    ]
+    findings = check_capture(load_rig(P1000), frames)
+    assert {(f.code, f.frame) for f in findings} == {
+        ("capture.size_vs_profile", "left"),
+        ("capture.model_vs_profile", "right"),
+        ("capture.missing_field", "back"),
+    }
+    assert any("rotated to portrait" in f.message for f in findings)
+
+
+def test_capture_focal_in_real_mm_uses_the_sensor_width(tmp_path: Path) -> None:
+    # vehicle-2m states f = 150 mm: a frame recording 150 mm matches, 160 mm (+6.7 %) does not.
+    frames = [
+        _frame(
+            tmp_path / f"{name}.jpg", model="cam", focal_mm=mm, focal_35mm=None, size=(4096, 3000)
+        )
+        for name, mm in (("L", 150), ("R", 150), ("B", 160))
+    ]
+    findings = check_capture(load_rig(VEHICLE), frames)
+    focal = [f for f in findings if f.code == "capture.focal_vs_profile"]
+    assert [(f.frame, f.field) for f in focal] == [("back", "FocalLength")]
+    assert "+6.7 % off" in focal[0].message
+
+
+def test_capture_without_exif_and_wrong_count(tmp_path: Path) -> None:
+    plain = tmp_path / "plain.png"
+    Image.new("L", (8, 6)).save(plain)
+    frames = [_frame(tmp_path / "L.jpg"), _frame(tmp_path / "R.jpg"), plain]
+    findings = check_capture(load_rig(P1000), frames)
+    assert [(f.code, f.frame) for f in findings] == [("capture.no_exif", "back")]
+    with pytest.raises(InputError, match="three images"):
+        check_capture(load_rig(P1000), frames[:2])
+
+
+# --------------------------------------------------------------------------- the command
+
+
+def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["rig", "check", str(P1000)]) == 0
+    out = capsys.readouterr().out
+    assert "53,251 px +-1 %" in out
+    assert "4.95 x 3.72 deg" in out
+    assert "1/150" in out and "0.382" in out  # at the profile's nominal 300 m
+    assert "3 % depth error: reached at 4,667 m" in out
+    assert out.rstrip().endswith("warnings: none")
+
+
+def test_cli_json_and_warning_exit_code(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _profile(tmp_path, 13_000, 0.5, 0.3)
+    assert main(["rig", "check", str(path), "--range", "250", "--range", "500", "--json"]) == 1
+    data = json.loads(capsys.readouterr().out)
+    assert data["focal_px"] == 13_000
+    assert [g["range_m"] for g in data["geometry"]] == [250.0, 500.0]
+    assert len(data["error_budget"]) == 9
+    assert data["error_budget"][0]["total_m"] == pytest.approx(
+        budget_row(ErrorModel.from_profile(load_rig(path)), 100.0).total_m
+    )
+    assert {w["code"] for w in data["warnings"]} >= {"C_lb_too_small", "fov_too_wide"}
+
+
+def test_cli_rejects_a_negative_range(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as caught:
+        main(["rig", "check", str(P1000), "--range", "-5"])
+    assert caught.value.code == 2
+    assert "must be > 0" in capsys.readouterr().err
