@@ -116,7 +116,9 @@ def _pct(x: float) -> str:
 
 def format_table(rows: Sequence[Metrics]) -> str:
     """A table in the style of the paper's Table 1, one line per scene and a mean line."""
-    head = f"{'scene':<20} {'<0.5%':>7} {'<1%':>7} {'<2%':>7} {'<3%':>7} {'density':>8} {'bias%':>7}"
+    head = (
+        f"{'scene':<20} {'<0.5%':>7} {'<1%':>7} {'<2%':>7} {'<3%':>7} {'density':>8} {'bias%':>7}"
+    )
     lines = [head, "-" * len(head)]
     for m in rows:
         if m.failed:

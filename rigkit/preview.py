@@ -21,7 +21,9 @@ def colorize(values: np.ndarray, lo: float, hi: float, label: str) -> np.ndarray
     if scale < 1.0:
         size = (round(values.shape[1] * scale), round(values.shape[0] * scale))
         w = cv2.resize(finite.astype(np.float32), size, interpolation=cv2.INTER_AREA)
-        s = cv2.resize(np.where(finite, values, 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        s = cv2.resize(
+            np.where(finite, values, 0).astype(np.float32), size, interpolation=cv2.INTER_AREA
+        )
         with np.errstate(invalid="ignore", divide="ignore"):
             values = np.where(w > 0.5, s / w, np.nan)
         finite = np.isfinite(values)

@@ -58,8 +58,11 @@ def rig_geometry(args: argparse.Namespace):  # -> RigGeometry
             "baseline_lr_m": profile.baseline_lr.value_m,
             "baseline_lb_m": profile.baseline_lb.value_m,
         }
-    for key, flag in (("focal_px", "focal_px"), ("baseline_lr_m", "baseline_lr"),
-                      ("baseline_lb_m", "baseline_lb")):
+    for key, flag in (
+        ("focal_px", "focal_px"),
+        ("baseline_lr_m", "baseline_lr"),
+        ("baseline_lb_m", "baseline_lb"),
+    ):
         if getattr(args, flag) is not None:
             values[key] = getattr(args, flag)
     missing = [k for k, v in values.items() if v is None]

@@ -93,8 +93,10 @@ Progress = Callable[[str, float], None]
 
 def _check_sizes(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:
     if not (left.shape == right.shape == back.shape):
-        sizes = ", ".join(f"{n} {a.shape[1]}x{a.shape[0]}" for n, a in
-                          (("left", left), ("right", right), ("back", back)))
+        sizes = ", ".join(
+            f"{n} {a.shape[1]}x{a.shape[0]}"
+            for n, a in (("left", left), ("right", right), ("back", back))
+        )
         raise InputError(f"images differ in size ({sizes}); all three must match")
 
 

@@ -57,7 +57,9 @@ def _coarse_affine(left: np.ndarray, other: np.ndarray, what: str) -> tuple[np.n
         )
     p1 = np.float32([k1[m.queryIdx].pt for m in good])
     p2 = np.float32([k2[m.trainIdx].pt for m in good])
-    A, inl = cv2.estimateAffine2D(p1, p2, ransacReprojThreshold=2.0, maxIters=4000, confidence=0.999)
+    A, inl = cv2.estimateAffine2D(
+        p1, p2, ransacReprojThreshold=2.0, maxIters=4000, confidence=0.999
+    )
     n_inl = int(inl.sum()) if inl is not None else 0
     if A is None or n_inl < MIN_COARSE_MATCHES:
         raise PipelineError(

@@ -126,7 +126,10 @@ def _sphere_hits(sph: Sphere, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray,
     t = np.where(hit, tn, np.inf)
     n = (o + np.where(hit, tn, 0)[..., None] * d - c) / sph.radius
     st = np.stack(
-        [sph.radius * np.arctan2(n[..., 0], -n[..., 2]), sph.radius * np.arcsin(np.clip(n[..., 1], -1, 1))],
+        [
+            sph.radius * np.arctan2(n[..., 0], -n[..., 2]),
+            sph.radius * np.arcsin(np.clip(n[..., 1], -1, 1)),
+        ],
         axis=-1,
     )
     return t, n, st

@@ -253,9 +253,7 @@ def generate_scene(params: SynthParams, seed: int) -> Scene:
         r = float(rng.uniform(0.05, 0.12) * half_w)
         z = float(terrain.z(np.array(x), np.array(y))) - r - rng.uniform(0.2, 0.8) * max(relief, 1)
         spheres.append(Sphere((float(x), float(y), z), r, texture=1 + params.n_boxes + i))
-    gains = {
-        name: float(1 + rng.uniform(-params.gain_jitter, params.gain_jitter)) for name in cams
-    }
+    gains = {name: float(1 + rng.uniform(-params.gain_jitter, params.gain_jitter)) for name in cams}
     return Scene(
         params=params,
         seed=seed,

@@ -1,0 +1,79 @@
+"""Speed and peak memory of the depth pipeline, end to end and per stage, at 1/4, 1/2
+and full 4608x3456 resolution (one synthetic triple each, rendered once and cached).
+
+    python benchmarks/bench_depth.py [--work out/bench] [--sizes 1152,2304,4608]
+
+Each size runs in a fresh process so that peak memory (max RSS) is its own.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+def run_one(scene: Path) -> dict:
+    from rigkit.pipeline import RigGeometry, estimate_depth
+    from rigkit.pipeline.images import load_grey
+    from rigkit.synth import load_scene
+
+    truth = load_scene(scene)
+    rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
+    t0 = time.perf_counter()
+    imgs = [load_grey(truth.image_path(v)) for v in ("left", "right", "back")]
+    t_load = time.perf_counter() - t0
+    res = estimate_depth(*imgs, rig)
+    total = time.perf_counter() - t0
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {
+        "load": round(t_load, 2),
+        **res.timings_s,
+        "total": round(total, 2),
+        "peak_mb": round(peak_mb),
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--work", type=Path, default=Path("out/bench"))
+    ap.add_argument("--sizes", default="1152,2304,4608")
+    ap.add_argument("--one", type=Path, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        print(json.dumps(run_one(args.one)))
+        return 0
+    from rigkit.synth import SynthParams, generate_scene, write_scene
+
+    print(
+        f"{'size':>11} {'pixels':>7} {'load':>5} {'match':>6} {'rect':>5} {'stereo':>6} "
+        f"{'ambig':>6} {'depth':>6} {'total s':>7} {'peak MB':>7}"
+    )
+    for w in (int(s) for s in args.sizes.split(",")):
+        h = w * 3 // 4
+        scene = args.work / f"bench-{w}"
+        if not (scene / "scene.yaml").is_file():
+            write_scene(generate_scene(SynthParams(width=w, height=h), seed=1), scene)
+        out = subprocess.run(
+            [sys.executable, __file__, "--one", str(scene)],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        print(
+            f"{w:>5}x{h:<5} {w * h / 1e6:6.1f}M {r['load']:5.2f} {r['matching']:6.2f} "
+            f"{r['rectification']:5.2f} {r['stereo']:6.2f} {r['ambiguity']:6.2f} "
+            f"{r['depth']:6.2f} {r['total']:7.2f} {r['peak_mb']:7d}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
