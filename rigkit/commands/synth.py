@@ -10,6 +10,9 @@ from rigkit.progress import Progress
 EXAMPLE = """example:
   rigkit synth out/scene-7 --seed 7                      # paper protocol, 4608x3456, 6 deg, 300 m
   rigkit synth out/small --seed 1 --width 1152 --height 864
+  rigkit synth out/vehicle --seed 3 --rig rigs/vehicle-2m.yaml   # size, f, baselines from a rig
+
+flags given explicitly override the rig profile; without --rig the defaults are the paper's.
 """
 
 
@@ -24,14 +27,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("out_dir", type=Path, help="folder to write (created if missing)")
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same scene")
-    p.add_argument("--width", type=int, default=4608, help="image width, px")
-    p.add_argument("--height", type=int, default=3456, help="image height, px")
-    p.add_argument("--fov", type=float, default=6.0, help="horizontal field of view, degrees")
+    p.add_argument("--rig", type=Path, help="rig profile YAML: image size, f, baselines, offset")
+    p.add_argument("--width", type=int, help="image width, px (default 4608)")
+    p.add_argument("--height", type=int, help="image height, px (default 3456)")
+    p.add_argument("--fov", type=float, help="horizontal field of view, degrees (default 6)")
     p.add_argument("--distance", type=float, default=300.0, help="scene distance, m")
-    p.add_argument("--baseline-lr", type=float, default=2.0, help="left-right baseline C_lr, m")
-    p.add_argument("--baseline-lb", type=float, default=2.0, help="left-back distance C_lb, m")
-    p.add_argument("--back-up", type=float, default=0.3, help="back camera raised by, m")
-    p.add_argument("--back-side", type=float, default=0.0, help="back camera offset right, m")
+    p.add_argument("--baseline-lr", type=float, help="left-right baseline C_lr, m (default 2)")
+    p.add_argument("--baseline-lb", type=float, help="left-back distance C_lb, m (default 2)")
+    p.add_argument("--back-up", type=float, help="back camera raised by, m (default 0.3)")
+    p.add_argument("--back-side", type=float, help="back camera offset right, m (default 0)")
     p.add_argument("--max-tilt", type=float, default=1.0, help="max x/y rotation, degrees")
     p.add_argument("--max-roll", type=float, default=5.0, help="max z rotation, degrees")
     p.add_argument("--max-pp-offset", type=float, default=30.0, help="principal point offset, px")
@@ -41,18 +45,50 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _rig_settings(path: Path) -> dict[str, float]:
+    import math
+
+    from rigkit.rig import load_rig
+
+    rig = load_rig(path)
+    w, h = rig.image_size
+    side, up = rig.back_offset_m or (0.0, 0.0)
+    return {
+        "width": w,
+        "height": h,
+        "fov": math.degrees(2 * math.atan(w / 2 / rig.focal_px)),
+        "baseline_lr": rig.baseline_lr.value_m,
+        "baseline_lb": rig.baseline_lb.value_m,
+        "back_up": up,
+        "back_side": side,
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     from rigkit.synth import SynthParams, generate_scene, write_scene
 
+    d = SynthParams()
+    settings: dict[str, float] = {
+        "width": d.width,
+        "height": d.height,
+        "fov": d.hfov_deg,
+        "baseline_lr": d.baseline_lr_m,
+        "baseline_lb": d.baseline_lb_m,
+        "back_up": d.back_up_m,
+        "back_side": d.back_side_m,
+    }
+    if args.rig is not None:
+        settings.update(_rig_settings(args.rig))
+    settings.update({k: getattr(args, k) for k in settings if getattr(args, k) is not None})
     params = SynthParams(
-        width=args.width,
-        height=args.height,
-        hfov_deg=args.fov,
+        width=int(settings["width"]),
+        height=int(settings["height"]),
+        hfov_deg=settings["fov"],
         distance_m=args.distance,
-        baseline_lr_m=args.baseline_lr,
-        baseline_lb_m=args.baseline_lb,
-        back_up_m=args.back_up,
-        back_side_m=args.back_side,
+        baseline_lr_m=settings["baseline_lr"],
+        baseline_lb_m=settings["baseline_lb"],
+        back_up_m=settings["back_up"],
+        back_side_m=settings["back_side"],
         max_tilt_deg=args.max_tilt,
         max_roll_deg=args.max_roll,
         max_pp_offset_px=args.max_pp_offset,

@@ -1,0 +1,75 @@
+"""The CLI as a user drives it: outputs, one-line errors, exit codes."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from rigkit.cli import main
+
+
+def _depth_args(scene_dir, out, *extra):
+    imgs = [str(scene_dir / f"{v}.png") for v in ("left", "right", "back")]
+    return ["depth", *imgs, "--out", str(out), "--quiet", *extra]
+
+
+def test_depth_writes_depth_sigma_sidecar_and_previews(scene_dir, truth, tmp_path, capsys):
+    out = tmp_path / "d.npy"
+    flags = ["--focal-px", str(truth.focal_px), "--baseline-lr", "2", "--baseline-lb", "2"]
+    assert main(_depth_args(scene_dir, out, *flags, "--preview")) == 0
+    depth = np.load(out)
+    assert depth.shape == truth.depth("left").shape and depth.dtype == np.float32
+    assert np.load(tmp_path / "d.sigma.npy").shape == depth.shape
+    meta = json.loads((tmp_path / "d.json").read_text())
+    assert meta["matches"]["left_right"] > 100 and "stereo" in meta["timings_s"]
+    assert cv2.imread(str(tmp_path / "d.png")) is not None
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_depth_reads_the_rig_profile(scene_dir, tmp_path):
+    # rigs/synthetic.yaml has the full-size focal length; an explicit flag overrides it.
+    out = tmp_path / "d.npy"
+    f = str(cv2.imread(str(scene_dir / "left.png")).shape[1] / 4608 * 43962.93892852579)
+    args = _depth_args(scene_dir, out, "--rig", "rigs/synthetic.yaml", "--focal-px", f)
+    assert main(args) == 0 and out.is_file()
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda a, t: a.__setitem__(1, str(t / "nope.png")), "no such file"),
+        (lambda a, t: a.__setitem__(a.index("--out") + 1, str(t / "d.txt")), ".npy"),
+        (lambda a, t: a.extend(["--focal-px", "0"]), "focal_px must be a positive"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(scene_dir, tmp_path, capsys, change, message):
+    args = _depth_args(scene_dir, tmp_path / "d.npy", "--baseline-lr", "2", "--baseline-lb", "2")
+    if message != "focal_px must be a positive":
+        args += ["--focal-px", "9000"]
+    change(args, tmp_path)
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1 and err.startswith("rigkit depth: error")
+    assert not (tmp_path / "d.npy").exists()
+
+
+def test_mismatched_sizes_leave_no_output(scene_dir, tmp_path, capsys):
+    small = tmp_path / "right.png"
+    img = cv2.imread(str(scene_dir / "right.png"), cv2.IMREAD_UNCHANGED)
+    cv2.imwrite(str(small), img[:-4])
+    args = _depth_args(scene_dir, tmp_path / "d.npy", "--focal-px", "9000")
+    args[2] = str(small)
+    assert main([*args, "--baseline-lr", "2", "--baseline-lb", "2"]) == 2
+    assert "differ in size" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [small]
+
+
+def test_help_lists_every_command(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    for cmd in ("depth", "synth", "eval", "rig", "rangefinder"):
+        assert cmd in out
