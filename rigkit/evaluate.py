@@ -78,7 +78,16 @@ def depth_metrics(
     rel = np.abs(est[has] - gt[has]) / gt[has]
     fractions = [float(np.count_nonzero(rel < t)) / n for t in THRESHOLDS]
     bias = float(np.median((est[has] - gt[has]) / gt[has])) if has.any() else math.nan
-    return Metrics(scene, n, float(has.mean()), *fractions, median_bias=bias)
+    return Metrics(
+        scene=scene,
+        judged_pixels=n,
+        density=float(has.mean()),
+        under_0_5=fractions[0],
+        under_1=fractions[1],
+        under_2=fractions[2],
+        under_3=fractions[3],
+        median_bias=bias,
+    )
 
 
 def failed_metrics(scene: str, reason: str) -> Metrics:

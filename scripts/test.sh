@@ -6,4 +6,5 @@ python3 -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet -e '.[test]'
 .venv/bin/ruff check rigkit tests benchmarks
+.venv/bin/mypy rigkit
 .venv/bin/python -m pytest "$@"

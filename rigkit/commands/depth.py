@@ -48,7 +48,11 @@ def rig_geometry(args: argparse.Namespace):  # -> RigGeometry
     from rigkit.errors import InputError
     from rigkit.pipeline import RigGeometry
 
-    values = {"focal_px": None, "baseline_lr_m": None, "baseline_lb_m": None}
+    values: dict[str, float | None] = {
+        "focal_px": None,
+        "baseline_lr_m": None,
+        "baseline_lb_m": None,
+    }
     if args.rig is not None:
         from rigkit.rig import load_rig
 
@@ -75,6 +79,8 @@ def rig_geometry(args: argparse.Namespace):  # -> RigGeometry
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from rigkit.errors import InputError
     from rigkit.pipeline import estimate_depth
     from rigkit.pipeline.images import load_grey
@@ -111,11 +117,12 @@ def run(args: argparse.Namespace) -> int:
         rel = 100 * result.sigma / result.depth
         files[Path(f"{stem}.sigma.png")] = colorize(rel, 0.0, 2.0, "1-sigma error (% of depth)")
     _write_all(files)
-    d = meta
+    a = result.ambiguity
     print(
-        f"wrote {out} ({left.shape[1]}x{left.shape[0]}, density {100 * d['density']:.1f} %, "
-        f"depth {d['depth_range_m'][0]:.1f}-{d['depth_range_m'][1]:.1f} m, "
-        f"offset {d['disparity_offset_px']:.2f} +- {d['disparity_offset_sigma_px']:.2f} px, "
+        f"wrote {out} ({left.shape[1]}x{left.shape[0]}, "
+        f"density {100 * float(np.isfinite(result.depth).mean()):.1f} %, "
+        f"median depth {float(np.nanmedian(result.depth)):.1f} m, "
+        f"offset {a.offset_px:.2f} +- {a.offset_sigma_px:.2f} px, "
         f"{sum(result.timings_s.values()):.1f} s)"
     )
     return 0

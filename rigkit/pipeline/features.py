@@ -43,7 +43,7 @@ def _coarse_affine(left: np.ndarray, other: np.ndarray, what: str) -> tuple[np.n
     scale = min(1.0, COARSE_SIDE / max(left.shape))
     size = (round(left.shape[1] * scale), round(left.shape[0] * scale))
     small = [_to_u8(cv2.resize(im, size, interpolation=cv2.INTER_AREA)) for im in (left, other)]
-    sift = cv2.SIFT_create(nfeatures=4000)
+    sift = cv2.SIFT_create(nfeatures=4000)  # type: ignore[attr-defined]
     (k1, d1), (k2, d2) = (sift.detectAndCompute(im, None) for im in small)
     if d1 is None or d2 is None or len(k1) < MIN_COARSE_MATCHES or len(k2) < MIN_COARSE_MATCHES:
         found = min(len(k1), len(k2))
@@ -55,8 +55,8 @@ def _coarse_affine(left: np.ndarray, other: np.ndarray, what: str) -> tuple[np.n
             f"{what}: only {len(good)} feature matches (need {MIN_COARSE_MATCHES}); "
             "are these views of the same scene?"
         )
-    p1 = np.float32([k1[m.queryIdx].pt for m in good])
-    p2 = np.float32([k2[m.trainIdx].pt for m in good])
+    p1 = np.array([k1[m.queryIdx].pt for m in good], np.float32)
+    p2 = np.array([k2[m.trainIdx].pt for m in good], np.float32)
     A, inl = cv2.estimateAffine2D(
         p1, p2, ransacReprojThreshold=2.0, maxIters=4000, confidence=0.999
     )
@@ -97,9 +97,24 @@ def match_views(
     l8, w8 = _to_u8(left), _to_u8(warped)
     p0 = _corners(left, n_points).astype(np.float32)
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.005)
-    lk = dict(winSize=(21, 21), maxLevel=4, criteria=crit)
-    p1, st1, _ = cv2.calcOpticalFlowPyrLK(l8, w8, p0, None, **lk)
-    p0b, st2, _ = cv2.calcOpticalFlowPyrLK(w8, l8, p1, None, **lk)
+    p1, st1, _ = cv2.calcOpticalFlowPyrLK(
+        l8,
+        w8,
+        p0,
+        None,
+        winSize=(21, 21),
+        maxLevel=4,
+        criteria=crit,  # type: ignore[call-overload]
+    )
+    p0b, st2, _ = cv2.calcOpticalFlowPyrLK(
+        w8,
+        l8,
+        p1,
+        None,
+        winSize=(21, 21),
+        maxLevel=4,
+        criteria=crit,  # type: ignore[call-overload]
+    )
     h, w = left.shape
     fb = np.linalg.norm(p0b - p0, axis=1)
     ok = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (fb < 0.1)

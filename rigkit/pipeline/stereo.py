@@ -37,7 +37,7 @@ class SGBM:
 
     def _matcher(self, lo: int, n: int) -> cv2.StereoSGBM:
         b = self.block_size
-        return cv2.StereoSGBM_create(
+        return cv2.StereoSGBM_create(  # type: ignore[attr-defined]
             minDisparity=lo,
             numDisparities=n,
             blockSize=b,

@@ -174,7 +174,8 @@ def render_view(
     radiance = np.empty((H, W), np.float32)
     depth = np.empty((H, W), np.float32)
     objects: list[tuple[Box | Sphere, tuple[int, int, int, int]]] = []
-    for obj in (*scene.boxes, *scene.spheres):
+    everything: tuple[Box | Sphere, ...] = (*scene.boxes, *scene.spheres)
+    for obj in everything:
         corners = _box_corners(obj) if isinstance(obj, Box) else _sphere_corners(obj)
         rect = _object_rect(cam, corners)
         if rect is not None:
