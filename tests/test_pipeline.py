@@ -11,6 +11,7 @@ from rigkit.evaluate import depth_metrics, visible_in_right
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.depth import triangulate_z
 from rigkit.pipeline.features import match_views
+from rigkit.pipeline.rectify import apply_homography
 
 
 def _true_correspondences(truth, view: str, n: int = 4000, seed: int = 0):
@@ -34,11 +35,6 @@ def _true_correspondences(truth, view: str, n: int = 4000, seed: int = 0):
     return np.stack([u, v], 1)[ok], uv[ok], z[ok]
 
 
-def _warp(H: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    q = pts @ H[:, :2].T + H[:, 2]
-    return q[:, :2] / q[:, 2:3]
-
-
 def test_matches_are_subpixel_accurate(truth, images) -> None:
     m = match_views(images["left"], images["back"], "left/back")
     left, back = truth.cameras["left"], truth.cameras["back"]
@@ -56,7 +52,7 @@ def test_matches_are_subpixel_accurate(truth, images) -> None:
 def test_rectification_puts_true_correspondences_on_one_row(truth, result) -> None:
     pl, pr, _ = _true_correspondences(truth, "right")
     r = result.rectification
-    rows = _warp(r.H_left, pl)[:, 1] - _warp(r.H_right, pr)[:, 1]
+    rows = apply_homography(r.H_left, pl)[:, 1] - apply_homography(r.H_right, pr)[:, 1]
     assert len(rows) > 1000
     assert np.percentile(np.abs(rows), 95) < 0.15
     # Rotations, not affine approximations: the fitted right-camera roll matches truth.
@@ -68,7 +64,7 @@ def test_rectification_puts_true_correspondences_on_one_row(truth, result) -> No
 def test_stereo_disparity_matches_true_rectified_disparity(truth, result) -> None:
     pl, pr, _ = _true_correspondences(truth, "right")
     r = result.rectification
-    xl, xr = _warp(r.H_left, pl), _warp(r.H_right, pr)
+    xl, xr = apply_homography(r.H_left, pl), apply_homography(r.H_right, pr)
     s = result.disparity_scale
     xs = (xl * s + 0.5 * s - 0.5).astype(np.float32).reshape(-1, 1, 2)
     est = cv2.remap(result.disparity, xs[..., 0], xs[..., 1], cv2.INTER_LINEAR).ravel() / s
@@ -82,7 +78,7 @@ def test_ambiguity_removal_recovers_metric_scale(truth, result, rig) -> None:
     """With the true rectified disparity, the fitted offset gives the true depth."""
     pl, pr, z = _true_correspondences(truth, "right")
     r = result.rectification
-    xl, xr = _warp(r.H_left, pl), _warp(r.H_right, pr)
+    xl, xr = apply_homography(r.H_left, pl), apply_homography(r.H_right, pr)
     zt = triangulate_z(r, xl[:, 0], xl[:, 0] - xr[:, 0], result.ambiguity.beta, rig.baseline_lr_m)
     rel = (zt - z) / z
     # At 960 px the back view's magnification signal is small: the offset is good to

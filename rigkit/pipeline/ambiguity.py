@@ -27,7 +27,7 @@ from rigkit.errors import PipelineError
 from rigkit.geometry import rotvec_to_matrix
 from rigkit.pipeline.depth import rectified_rays, triangulate_z
 from rigkit.pipeline.features import Matches
-from rigkit.pipeline.rectify import Rectification, scaling
+from rigkit.pipeline.rectify import Rectification, apply_homography, scaling
 
 MIN_MATCHES = 30
 MAX_BACK_SIDE = 0.5  # back camera's sideways offset, as a fraction of C_lr, still plausible
@@ -61,9 +61,8 @@ def _sample_disparity(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rectified full-res column and disparity (full-res px) at left pixels ``pts``.
     Disparities near depth edges or holes (spread over 0.5 px in a window) are NaN."""
-    q = pts @ rect.H_left[:, :2].T + rect.H_left[:, 2]
-    xr = q[:, :2] / q[:, 2:3]
-    xs = xr @ scaling(scale)[:2, :2].T + scaling(scale)[:2, 2]
+    xr = apply_homography(rect.H_left, pts)
+    xs = apply_homography(scaling(scale), xr)
     m = xs.astype(np.float32).reshape(-1, 1, 2)
     d = cv2.remap(disparity, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderValue=np.nan)
     k = np.ones((EDGE_WINDOW, EDGE_WINDOW), np.uint8)

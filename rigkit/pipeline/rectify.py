@@ -68,14 +68,15 @@ def _homographies(p: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return K @ R_rect @ Ki, K @ R_rect @ R_lr @ Ki, R_lr
 
 
-def _apply(H: np.ndarray, pts: np.ndarray) -> np.ndarray:
+def apply_homography(H: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Map (N, 2) pixel coordinates through a 3x3 homography."""
     q = pts @ H[:, :2].T + H[:, 2]
     return q[:, :2] / q[:, 2:3]
 
 
 def _row_residuals(p: np.ndarray, K: np.ndarray, pl: np.ndarray, pr: np.ndarray) -> np.ndarray:
     Hl, Hr, _ = _homographies(p, K)
-    res = _apply(Hl, pl)[:, 1] - _apply(Hr, pr)[:, 1]
+    res = apply_homography(Hl, pl)[:, 1] - apply_homography(Hr, pr)[:, 1]
     return np.append(res, 0.05 * p[0] / ROLL_PRIOR_RAD)
 
 
@@ -116,11 +117,11 @@ def pseudo_rectify(matches: Matches, f: float, image_size: tuple[int, int]) -> R
 
     # Canvas: the left image's rectified footprint; right image shifted to small disparities.
     corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], float)
-    wc = _apply(Hl, corners)
+    wc = apply_homography(Hl, corners)
     lo = np.floor(wc.min(axis=0))
     size = (int(np.ceil(wc[:, 0].max() - lo[0])) + 1, int(np.ceil(wc[:, 1].max() - lo[1])) + 1)
     canvas = np.array([[1, 0, -lo[0]], [0, 1, -lo[1]], [0, 0, 1.0]])
-    d = _apply(Hl, pl[inl])[:, 0] - _apply(Hr, pr[inl])[:, 0]
+    d = apply_homography(Hl, pl[inl])[:, 0] - apply_homography(Hr, pr[inl])[:, 0]
     shift = float(np.round(np.median(d)))
     d_lo, d_hi = np.percentile(d - shift, [0.5, 99.5])
     rng = (int(np.floor(d_lo)) - DISPARITY_MARGIN, int(np.ceil(d_hi)) + DISPARITY_MARGIN)

@@ -77,17 +77,22 @@ class SGBM:
         return _left_right_check(disp, disp_r, self.lr_tolerance_px)
 
 
+def _at_match(disp: np.ndarray, right_map: np.ndarray, fill: object) -> np.ndarray:
+    """``right_map`` (H, W) looked up at each left pixel's match ``(row, x - d)``
+    (nearest column); ``fill`` where the disparity is NaN or the match is off the image."""
+    h, w = disp.shape
+    xr = np.rint(np.arange(w)[None, :] - np.nan_to_num(disp, nan=-1e6)).astype(np.int64)
+    inside = (xr >= 0) & (xr < w)
+    out = np.full((h, w), fill, dtype=right_map.dtype)
+    rows = np.broadcast_to(np.arange(h)[:, None], (h, w))
+    out[inside] = right_map[rows[inside], xr[inside]]
+    return out
+
+
 def _left_right_check(disp: np.ndarray, disp_r: np.ndarray, tol: float) -> np.ndarray:
     """Keep left disparities that the right view's disparity confirms within ``tol`` px."""
-    h, w = disp.shape
-    cols = np.arange(w, dtype=np.float32)[None, :]
-    xr = np.rint(cols - np.nan_to_num(disp, nan=-1e6)).astype(np.int64)
-    inside = (xr >= 0) & (xr < w)
-    back = np.full_like(disp, np.nan)
-    rows = np.broadcast_to(np.arange(h)[:, None], disp.shape)
-    back[inside] = disp_r[rows[inside], xr[inside]]
     with np.errstate(invalid="ignore"):
-        ok = np.abs(back - disp) <= tol
+        ok = np.abs(_at_match(disp, disp_r, np.nan) - disp) <= tol
     return np.where(ok, disp, np.nan).astype(np.float32)
 
 
@@ -96,13 +101,8 @@ def restrict_to_footprints(
 ) -> np.ndarray:
     """NaN where the left pixel, or its match ``x - d`` in the right image, lies outside
     that image's footprint on the rectified canvas (all (H, W); masks bool)."""
-    h, w = disp.shape
-    xr = np.rint(np.arange(w)[None, :] - np.nan_to_num(disp, nan=-1e6)).astype(np.int64)
-    inside = (xr >= 0) & (xr < w)
-    ok = np.zeros((h, w), bool)
-    rows = np.broadcast_to(np.arange(h)[:, None], (h, w))
-    ok[inside] = right_valid[rows[inside], xr[inside]]
-    return np.where(ok & left_valid, disp, np.nan).astype(np.float32)
+    ok = _at_match(disp, right_valid, False) & left_valid
+    return np.where(ok, disp, np.nan).astype(np.float32)
 
 
 def fill_holes(disp: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
