@@ -17,6 +17,9 @@ COMMANDS: tuple[str, ...] = (
     "eval",
     "rig",
     "rangefinder",
+    "session",
+    "process",
+    "report",
 )
 
 

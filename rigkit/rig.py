@@ -229,8 +229,17 @@ def load_rig(path: str | Path) -> RigProfile:
     unknown key, missing key, wrong type, implausible unit or impossible value.
     """
     path = Path(path)
-    data = _read_yaml(path)
-    top = _Key(path, "")
+    return rig_from_data(_read_yaml(path), path)
+
+
+def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
+    """Validate a profile already parsed from YAML (e.g. the copy a session keeps).
+
+    ``source`` names the file in errors; ``key_prefix`` is the dotted key the profile
+    sits under in that file (``"rig.values"`` in a session.yaml), so errors name it.
+    """
+    path = source
+    top = _Key(path, key_prefix)
     keys = top.mapping(
         data,
         required=("version", "name", "baselines"),
@@ -253,12 +262,18 @@ def load_rig(path: str | Path) -> RigProfile:
 
 
 def _read_yaml(path: Path) -> Any:
+    return read_strict_yaml(path, "rig profile")
+
+
+def read_strict_yaml(path: Path, what: str) -> Any:
+    """Parse a YAML file, rejecting duplicate keys; InputError names the file (``what`` it
+    should be) and the line of a syntax error."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise InputError(f"{path}: no such rig profile") from None
+        raise InputError(f"{path}: no such {what}") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the rig profile ({exc})") from None
+        raise InputError(f"{path}: cannot read the {what} ({exc})") from None
     try:
         data = yaml.load(text, Loader=_StrictLoader)
     except yaml.MarkedYAMLError as exc:
@@ -269,7 +284,7 @@ def _read_yaml(path: Path) -> Any:
     except yaml.YAMLError as exc:
         raise InputError(f"{path}: not valid YAML: {exc}") from None
     if data is None:
-        raise InputError(f"{path}: the rig profile is empty")
+        raise InputError(f"{path}: the {what} is empty")
     return data
 
 

@@ -39,3 +39,38 @@ def rig(truth: SceneTruth) -> RigGeometry:
 @pytest.fixture(scope="session")
 def result(images: dict, rig: RigGeometry) -> DepthResult:
     return estimate_depth(images["left"], images["right"], images["back"], rig)
+
+
+@pytest.fixture(scope="session")
+def synth_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A complete capture session (PNG frames, 5 simulated laser targets) of seed 3.
+
+    Treat it as read-only: copy it (``copy_session``) before changing it.
+    """
+    from rigkit.synth.session import write_synthetic_session
+
+    out = tmp_path_factory.mktemp("sessions") / "seed-3"
+    write_synthetic_session(generate_scene(SMALL, seed=3), out, n_targets=5, seed=3)
+    return out
+
+
+@pytest.fixture(scope="session")
+def processed_session(synth_session: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``synth_session`` after one ``rigkit process`` run (read-only, like it)."""
+    import shutil
+
+    from rigkit.process import process_session
+
+    out = tmp_path_factory.mktemp("processed") / "seed-3"
+    shutil.copytree(synth_session, out)
+    process_session(out, "20260101T000000Z-0001")
+    return out
+
+
+def copy_session(source: Path, folder: Path, name: str | None = None) -> Path:
+    """A private copy of a session fixture to change in one test."""
+    import shutil
+
+    out = folder / (name or source.name)
+    shutil.copytree(source, out)
+    return out

@@ -107,7 +107,9 @@ class SceneTruth:
         return np.load(p)
 
     def image_path(self, view: str) -> Path:
-        return self.path / f"{view}.png"
+        """The rendered image; in a synthetic session it lives in ``raw/``."""
+        rendered = self.path / f"{view}.png"
+        return rendered if rendered.is_file() else self.path / "raw" / f"{view}.png"
 
 
 def load_scene(path: str | Path) -> SceneTruth:

@@ -1,0 +1,106 @@
+"""``rigkit process``: depth, previews and laser comparisons for capture sessions."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+EXAMPLE = """examples:
+  rigkit process capture/example
+  rigkit process capture/* --jobs 2
+
+for each session writes SESSION/results/ (depth.npy, sigma.npy, depth.json, depth.png
+and left.png with the targets marked, sigma.png, comparisons.csv), replacing the previous
+results as a whole, and appends one row per target to SESSION/comparisons.csv.
+A session that fails is reported and the others go on; the exit code is 1 if any failed.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "process",
+        help="process capture sessions: depth, previews, rangefinder comparisons",
+        description="Run the depth pipeline on each session and compare the estimate "
+        "with every laser-ranged target (docs/sessions.md).",
+        epilog=EXAMPLE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("sessions", type=Path, nargs="+", metavar="SESSION", help="session folders")
+    p.add_argument("--jobs", type=int, help="sessions processed at once (default: as many "
+                   "as cores and free memory allow)")
+    p.add_argument("--force", action="store_true",
+                   help="process despite an EXIF focal length that contradicts the rig")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigkit.errors import InputError
+    from rigkit.process import auto_jobs, new_run_id, run_batch
+
+    paths = list(dict.fromkeys(args.sessions))
+    if args.jobs is not None and args.jobs < 1:
+        raise InputError(f"--jobs {args.jobs}: expected at least 1")
+    jobs = args.jobs or auto_jobs(paths)
+    run_id = new_run_id()
+    board = Board(paths, quiet=args.quiet)
+    print(f"run {run_id}: {len(paths)} session(s), {jobs} at a time", file=sys.stderr)
+    outcomes = run_batch(paths, jobs, run_id=run_id, force=args.force,
+                         progress=board.update, on_done=board.finished)
+    failed = [o for o in outcomes if not o.ok]
+    print(f"run {run_id}: {len(outcomes) - len(failed)} processed, {len(failed)} failed "
+          f"({board.elapsed():.1f} s)")
+    for outcome in failed:
+        print(f"  FAILED {outcome.path}: {outcome.message}")
+    return 1 if failed else 0
+
+
+class Board:
+    """Per-session stage progress and an ETA for the whole batch, on stderr.
+
+    On a terminal the current line is rewritten; otherwise a line per stage.
+    """
+
+    def __init__(self, paths: list[Path], quiet: bool) -> None:
+        self.fraction = {path: 0.0 for path in paths}
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.t0 = time.perf_counter()
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def eta(self) -> str:
+        done = sum(self.fraction.values()) / max(len(self.fraction), 1)
+        if done <= 0.02:
+            return "ETA --"
+        remaining = self.elapsed() * (1 - done) / done
+        return f"ETA {remaining:.0f} s" if remaining < 120 else f"ETA {remaining / 60:.1f} min"
+
+    def update(self, path: Path, stage: str, fraction: float) -> None:
+        self.fraction[path] = max(self.fraction.get(path, 0.0), fraction)
+        if self.quiet:
+            return
+        total = 100 * sum(self.fraction.values()) / max(len(self.fraction), 1)
+        line = (f"[{total:3.0f}% {self.eta()}] {path.name}: {stage} "
+                f"{100 * fraction:3.0f}%")
+        if self.tty:
+            print(f"\r{line}\033[K", end="", file=sys.stderr, flush=True)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    def finished(self, outcome: Any) -> None:
+        self.fraction[outcome.path] = 1.0
+        clear = "\r\033[K" if self.tty and not self.quiet else ""
+        state = "ok" if outcome.ok else "FAILED"
+        print(f"{clear}{state:>6} {outcome.path} ({outcome.seconds:.1f} s): {outcome.message}",
+              file=sys.stderr, flush=True)
+        for warning in outcome.warnings:
+            print(f"       warning: {warning}", file=sys.stderr)
+        for row in outcome.rows:
+            print(f"       {row.target:<8} laser {row.laser_range_m:8.2f} m  estimate "
+                  f"{row.estimate_range_m:8.2f} m  {row.error_pct:+6.2f} %  "
+                  f"(+- {row.estimate_sigma_m:.2f} m) {row.status}", file=sys.stderr)

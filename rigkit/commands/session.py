@@ -1,0 +1,256 @@
+"""``rigkit session``: create a capture session and record its frames and laser targets."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+EXAMPLE = """examples:
+  rigkit session new capture/ridge-0412 --rig rigs/p1000-tripod.yaml --operator "A. Field"
+  rigkit session add-frame capture/ridge-0412 --position left  DSCN0101.NRW
+  rigkit session add-frame capture/ridge-0412 --position right DSCN0102.NRW
+  rigkit session add-frame capture/ridge-0412 --position back  DSCN0103.NRW
+  rigkit session add-target capture/ridge-0412 --name mast --pixel 2210 1408 --range-m 312.4
+  rigkit session add-target capture/ridge-0412 --name barn --pixel 900 2100 --device
+  rigkit session show capture/ridge-0412
+
+Frames are copied byte for byte into SESSION/raw/ and hashed; rigkit never changes or
+deletes anything there. Layout and file formats: docs/sessions.md.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "session",
+        help="create a capture session; add frames and rangefinder targets; show it",
+        description="A capture session is a folder holding the rig profile, the left, "
+        "right and back frames, and laser-ranged targets (docs/sessions.md).",
+        epilog=EXAMPLE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+
+    new = actions.add_parser("new", help="create a session folder")
+    new.add_argument("session", type=Path, help="folder to create, e.g. capture/ridge-0412")
+    new.add_argument("--rig", type=Path, required=True, help="rig profile YAML (copied in)")
+    new.add_argument("--operator", default="", help="who captured it")
+    new.add_argument("--notes", default="", help="free text: site, weather, anything")
+    new.set_defaults(func=run_new)
+
+    frame = actions.add_parser("add-frame", help="copy a left/right/back frame into raw/")
+    frame.add_argument("session", type=Path)
+    frame.add_argument("--position", required=True, choices=("left", "right", "back"))
+    frame.add_argument("file", type=Path, help="RAW (NEF, DNG, CR2, ...), PNG, TIFF or JPEG")
+    frame.add_argument("--replace", action="store_true",
+                       help="swap an existing frame (its file stays in raw/)")
+    frame.set_defaults(func=run_add_frame)
+
+    target = actions.add_parser("add-target", help="a pixel in the left image and its range")
+    target.add_argument("session", type=Path)
+    target.add_argument("--pixel", nargs=2, type=float, metavar=("U", "V"), required=True,
+                        help="target centre in the left image, px (x right, y down)")
+    target.add_argument("--name", help="target name (default T1, T2, ...); an existing "
+                        "name adds readings to that target")
+    target.add_argument("--window", type=int, default=9,
+                        help="side of the square window the estimate is taken over, px "
+                        "(odd, default 9)")
+    source = target.add_mutually_exclusive_group(required=True)
+    source.add_argument("--range-m", type=float, nargs="+", metavar="R",
+                        help="laser slope distance(s) typed in, metres")
+    source.add_argument("--device", nargs="?", const="rig", metavar="URL",
+                        help="read from a rangefinder: a serial port or pyserial URL "
+                        "(default: the rig profile's port)")
+    target.add_argument("--protocol", help="device protocol (default: the rig profile's)")
+    target.add_argument("--shots", type=int, default=1, help="readings to take from --device")
+    target.add_argument("--timeout", type=float, default=30.0,
+                        help="seconds to wait for each device reading")
+    target.add_argument("--inclination", type=float, help="inclination of typed ranges, deg")
+    target.add_argument("--note", default="", help="what the target is")
+    target.set_defaults(func=run_add_target)
+
+    show = actions.add_parser("show", help="print a session: frames, targets, last results")
+    show.add_argument("session", type=Path)
+    show.add_argument("--json", action="store_true", help="machine-readable output")
+    show.set_defaults(func=run_show)
+
+
+def run_new(args: argparse.Namespace) -> int:
+    from rigkit.session import create_session
+
+    session = create_session(args.session, args.rig, operator=args.operator, notes=args.notes)
+    print(f"created session {session.path} (rig {session.rig().name}); next: add the left, "
+          "right and back frames with `rigkit session add-frame`")
+    return 0
+
+
+def run_add_frame(args: argparse.Namespace) -> int:
+    from rigkit.session import add_frame, load_session
+
+    session = add_frame(load_session(args.session), args.position, args.file,
+                        replace_existing=args.replace)
+    frame = session.frames[args.position]
+    width, height = frame.size_px
+    print(f"{args.position}: {frame.file} ({width}x{height} px, sha256 {frame.sha256[:12]})")
+    missing = [p for p in ("left", "right", "back") if p not in session.frames]
+    if missing:
+        print("still needed: " + ", ".join(missing))
+    else:
+        _print_exif_findings(session)
+    return 0
+
+
+def _print_exif_findings(session: Any) -> None:
+    from rigkit.rigcheck import check_capture
+
+    paths = [session.frame_path(p) for p in ("left", "right", "back")]
+    findings = check_capture(session.rig(), paths)
+    for finding in findings:
+        print(f"warning: {finding.message}")
+    if not findings:
+        print("all three frames present; EXIF agrees with the rig profile")
+
+
+def run_add_target(args: argparse.Namespace) -> int:
+    from rigkit.session import add_target, load_session
+
+    session = load_session(args.session)
+    name = args.name or _next_name(session)
+    if args.range_m is not None:
+        readings = _typed_readings(args.range_m, args.inclination)
+    else:
+        readings = _device_readings(session, args)
+    session = add_target(session, name, tuple(args.pixel), window_px=args.window,
+                         readings=readings, note=args.note)
+    target = session.target(name)
+    ranges = ", ".join(f"{r.slope_distance_m:.2f}" for r in target.readings)
+    print(f"target {name} at ({target.pixel[0]:g}, {target.pixel[1]:g}): "
+          f"{len(target.readings)} reading(s) [{ranges}] m")
+    return 0
+
+
+def _next_name(session: Any) -> str:
+    taken = {t.name for t in session.targets}
+    n = 1
+    while f"T{n}" in taken:
+        n += 1
+    return f"T{n}"
+
+
+def _typed_readings(ranges: list[float], inclination: float | None) -> list[Any]:
+    from rigkit.errors import InputError
+    from rigkit.session import LaserReading, utc_now
+
+    for value in ranges:
+        if not value > 0:
+            raise InputError(f"--range-m {value}: expected a positive distance in metres")
+    return [LaserReading(r, utc_now(), "manual", inclination) for r in ranges]
+
+
+def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
+    from datetime import UTC, datetime
+
+    from rigkit.errors import InputError
+    from rigkit.rangefinder import open_rangefinder
+    from rigkit.rangefinder.protocols import escape_bytes
+    from rigkit.session import LaserReading
+
+    spec = session.rig().rangefinder
+    url = args.device
+    if url == "rig":
+        if spec is None or spec.port is None:
+            raise InputError("--device: the rig profile names no rangefinder port; give the "
+                             "port, e.g. --device /dev/ttyUSB0")
+        url = spec.port
+    protocol = args.protocol or (spec.protocol if spec and spec.protocol != "manual"
+                                 else "trupulse")
+    if args.shots < 1:
+        raise InputError(f"--shots {args.shots}: expected at least 1")
+    readings = []
+    baud = spec.baud if spec is not None and url == spec.port else None
+    with open_rangefinder(url, protocol, baud=baud, timeout=args.timeout) as device:
+        for shot in range(args.shots):
+            print(f"waiting for reading {shot + 1}/{args.shots} from {device.name} ...",
+                  flush=True)
+            reading = device.read()
+            readings.append(LaserReading(
+                slope_distance_m=reading.slope_distance_m,
+                time_utc=datetime.fromtimestamp(reading.timestamp, UTC)
+                .strftime("%Y-%m-%dT%H:%M:%SZ"),
+                source=f"{protocol}:{url}",
+                inclination_deg=reading.inclination_deg,
+                raw=escape_bytes(reading.raw),
+            ))
+    return readings
+
+
+def run_show(args: argparse.Namespace) -> int:
+    from rigkit.session import load_session
+
+    session = load_session(args.session)
+    if args.json:
+        print(json.dumps(_show_data(session), indent=2))
+    else:
+        print(_show_text(session))
+    return 0
+
+
+def _show_data(session: Any) -> dict[str, Any]:
+    from rigkit.session import frame_problems, session_to_data
+
+    data = session_to_data(session)
+    data["problems"] = frame_problems(session)
+    data["last_run"] = [_row_dict(row) for row in _last_rows(session)]
+    return data
+
+
+def _row_dict(row: Any) -> dict[str, Any]:
+    from dataclasses import asdict
+
+    return asdict(row)
+
+
+def _last_rows(session: Any) -> list[Any]:
+    from rigkit.comparisons import LOG_NAME, latest_run, read_rows
+
+    log = session.path / LOG_NAME
+    return latest_run(read_rows(log)) if log.is_file() else []
+
+
+def _show_text(session: Any) -> str:
+    from rigkit.session import POSITIONS, frame_problems
+
+    lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
+    if session.operator:
+        lines.append(f"  operator {session.operator}")
+    if session.notes:
+        lines.append(f"  notes    {session.notes}")
+    rig = session.rig()
+    lines.append(f"  rig      {rig.name} (from {session.rig_reference}): f {rig.focal_px:.1f} "
+                 f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
+    lines.append("frames")
+    for position in POSITIONS:
+        frame = session.frames.get(position)
+        if frame is None:
+            lines.append(f"  {position:<5}  (missing)")
+            continue
+        exif = frame.exif
+        shot = ", ".join(str(exif[k]) for k in ("model", "datetime_original") if k in exif)
+        lines.append(f"  {position:<5}  {frame.file}  {frame.size_px[0]}x{frame.size_px[1]}  "
+                     f"sha256 {frame.sha256[:12]}  {shot}")
+    lines.append(f"targets ({len(session.targets)})")
+    for target in session.targets:
+        ranges = ", ".join(f"{r.slope_distance_m:.2f}" for r in target.readings) or "none"
+        lines.append(f"  {target.name:<8} pixel ({target.pixel[0]:g}, {target.pixel[1]:g}) "
+                     f"window {target.window_px}  laser [{ranges}] m  {target.note}".rstrip())
+    problems = frame_problems(session)
+    lines.append("status   " + ("ready to process" if not problems else "; ".join(problems)))
+    rows = _last_rows(session)
+    if rows:
+        lines.append(f"last run {rows[0].run_id}")
+        for row in rows:
+            lines.append(f"  {row.target:<8} laser {row.laser_range_m:9.2f} m  estimate "
+                         f"{row.estimate_range_m:9.2f} m  error {row.error_pct:+6.2f} %  "
+                         f"{row.status}")
+    return "\n".join(lines)

@@ -1,0 +1,144 @@
+"""The rangefinder-vs-estimate log: one CSV row per target per processing run.
+
+Each session keeps ``comparisons.csv`` at its top level. ``rigkit process`` appends one
+row per target each time it runs, tagged with the run's id, and never rewrites earlier
+rows, so the file is the session's history of comparisons. Readers usually want the
+newest run only (:func:`latest_run`).
+
+Sign convention: ``error_m = estimate_range_m - laser_range_m`` (positive: the depth map
+puts the target too far), ``error_pct = 100 * error_m / laser_range_m``. Ranges are
+along the laser's line of sight from its aperture, in metres.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+from rigkit.errors import InputError
+
+LOG_NAME = "comparisons.csv"
+
+#: ``status`` values: a usable comparison, or why there is none.
+STATUS_OK = "ok"
+STATUS_NO_ESTIMATE = "no_estimate"  # no finite depth in the target's window
+STATUS_NO_READING = "no_reading"  # the target has no laser reading
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One target of one run.
+
+    Units: metres, pixels, percent; ``NaN`` where a value does not exist (e.g. no
+    estimate). ``u``, ``v``: target centre in the original left image, px (x right, y
+    down). ``window_px``: side of the square window the estimate is taken over.
+    ``laser_range_m``: mean of the target's readings (slope distance from the laser's
+    aperture); ``laser_spread_m``: their standard deviation (0 for one reading).
+    ``estimate_range_m``: median depth in the window converted to range along the line of
+    sight from the laser aperture; ``estimate_sigma_m``: its one-sigma uncertainty (the
+    pipeline's per-pixel sigma at the median, scaled the same way). ``valid_fraction``:
+    share of window pixels with an estimate.
+    """
+
+    run_id: str
+    time_utc: str
+    session: str
+    target: str
+    u: float
+    v: float
+    window_px: int
+    laser_range_m: float
+    laser_readings: int
+    laser_spread_m: float
+    estimate_range_m: float
+    estimate_sigma_m: float
+    valid_fraction: float
+    error_m: float
+    error_pct: float
+    status: str
+
+    @property
+    def ok(self) -> bool:
+        return self.status == STATUS_OK and math.isfinite(self.error_pct)
+
+
+COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(Comparison))
+_TYPES = {f.name: f.type for f in fields(Comparison)}
+
+
+def format_row(row: Comparison) -> dict[str, str]:
+    """The row as CSV strings: floats to 9 significant digits (micrometres at 1 km)."""
+    out: dict[str, str] = {}
+    for key, value in asdict(row).items():
+        if isinstance(value, float):
+            out[key] = "nan" if not math.isfinite(value) else f"{value:.9g}"
+        else:
+            out[key] = str(value)
+    return out
+
+
+def append_rows(path: Path, rows: Sequence[Comparison]) -> None:
+    """Append rows to the log at ``path``, writing the header if the file is new.
+
+    The rows go in with a single write on a file opened for appending, so a crash leaves
+    either all of this run's rows or none of them (short of a full disk).
+    """
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+    if not path.exists() or path.stat().st_size == 0:
+        writer.writeheader()
+    for row in rows:
+        writer.writerow(format_row(row))
+    with path.open("a", encoding="utf-8", newline="") as handle:
+        handle.write(buffer.getvalue())
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+def read_rows(path: Path) -> list[Comparison]:
+    """Every row of a comparisons log; InputError naming the file and line if malformed."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no comparisons log (run `rigkit process` first)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read the comparisons log ({exc})") from None
+    reader = csv.DictReader(io.StringIO(text))
+    if reader.fieldnames is None:
+        return []
+    missing = [c for c in COLUMNS if c not in reader.fieldnames]
+    if missing:
+        raise InputError(f"{path}: not a comparisons log (missing columns {', '.join(missing)})")
+    rows = []
+    for number, record in enumerate(reader, start=2):
+        try:
+            rows.append(_parse(record))
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{path}: line {number}: {exc}") from None
+    return rows
+
+
+def _parse(record: dict[str, str]) -> Comparison:
+    values: dict[str, object] = {}
+    for name in COLUMNS:
+        text = record[name]
+        if text is None:
+            raise ValueError(f"column {name} is empty")
+        kind = _TYPES[name]
+        values[name] = float(text) if kind == "float" else int(text) if kind == "int" else text
+    return Comparison(**values)  # type: ignore[arg-type]
+
+
+def latest_run(rows: Iterable[Comparison]) -> list[Comparison]:
+    """The rows of each session's newest run (run ids sort by time)."""
+    rows = list(rows)
+    newest: dict[str, str] = {}
+    for row in rows:
+        if row.run_id > newest.get(row.session, ""):
+            newest[row.session] = row.run_id
+    return [row for row in rows if row.run_id == newest[row.session]]

@@ -1,0 +1,484 @@
+"""Headless processing of capture sessions: depth, previews and laser comparisons.
+
+:func:`process_session` runs the depth pipeline on one session folder, writes its
+``results/`` as a whole (staged in a hidden folder, then swapped in) and appends one
+row per target to its ``comparisons.csv``. :func:`run_batch` does that for many
+sessions, in parallel processes with memory-bounded concurrency, and never lets one
+failing session stop the others.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import multiprocessing
+import os
+import secrets
+import shutil
+import threading
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rigkit import __version__
+from rigkit.comparisons import (
+    LOG_NAME,
+    STATUS_NO_ESTIMATE,
+    STATUS_NO_READING,
+    STATUS_OK,
+    Comparison,
+    append_rows,
+)
+from rigkit.errors import InputError, RigkitError
+from rigkit.session import (
+    POSITIONS,
+    RESULTS_DIR,
+    Session,
+    Target,
+    frame_problems,
+    load_session,
+    log_event,
+    utc_now,
+)
+
+#: Finding codes from the EXIF check that stop processing (``force`` overrides): a
+#: different focal length breaks the one-f assumption the depth scale rests on.
+FATAL_FINDINGS = frozenset({"capture.focal_vs_profile"})
+FATAL_MISMATCH_FIELDS = frozenset({"FocalLength", "FocalLengthIn35mmFilm", "ExifImageWidth"})
+
+#: Memory a session needs, per pixel of one frame, at the peak of decoding and the
+#: pipeline (measured by benchmarks/bench_process.py), plus a fixed overhead.
+BYTES_PER_PIXEL = 110
+BASE_BYTES = 400 * 2**20
+
+StageReport = Callable[[str, float], None]
+
+
+def new_run_id() -> str:
+    """A run id that sorts by time: ``20261122T101530Z-3fa2``."""
+    return datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ") + "-" + secrets.token_hex(2)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What happened to one session: ``ok`` with its comparisons, or the reason it failed.
+
+    ``warnings`` are one-line findings that did not stop processing (EXIF differences).
+    """
+
+    path: Path
+    ok: bool
+    message: str
+    seconds: float
+    rows: tuple[Comparison, ...] = ()
+    warnings: tuple[str, ...] = field(default=())
+
+
+# -- one session ----------------------------------------------------------------------------
+
+
+def process_session(
+    path: str | Path,
+    run_id: str,
+    *,
+    force: bool = False,
+    progress: StageReport | None = None,
+) -> Outcome:
+    """Process one session folder; RigkitError (one line) if it cannot be processed.
+
+    Nothing under ``raw/`` is touched; ``results/`` is replaced only once the new
+    results are completely written.
+    """
+    from rigkit.frames import load_frames
+    from rigkit.pipeline import RigGeometry, estimate_depth
+
+    t0 = time.perf_counter()
+    report = progress or (lambda stage, fraction: None)
+    session = load_session(path)
+    problems = frame_problems(session)
+    if problems:
+        raise InputError(f"{session.path}: " + "; ".join(problems))
+    profile = session.rig()
+    warnings = _exif_warnings(session, force)
+    report("reading frames", 0.02)
+    left, right, back = load_frames(session)
+    report("reading frames", 0.1)
+    rig = RigGeometry(profile.focal_px, profile.baseline_lr.value_m, profile.baseline_lb.value_m)
+    result = estimate_depth(
+        left, right, back, rig, progress=lambda stage, f: report(stage, 0.1 + 0.8 * f)
+    )
+    rows = tuple(
+        compare_target(session, target, result.depth, result.sigma, run_id)
+        for target in session.targets
+    )
+    report("writing results", 0.92)
+    meta = {
+        "run_id": run_id,
+        "rigkit_version": __version__,
+        "time_utc": utc_now(),
+        "frames": {
+            pos: {"file": session.frames[pos].file, "sha256": session.frames[pos].sha256}
+            for pos in POSITIONS
+        },
+        "rig": {"name": profile.name, "focal_px": rig.focal_px,
+                "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m},
+        "warnings": list(warnings),
+        **result.diagnostics(),
+    }
+    images = _previews(left, result.depth, result.sigma, session.targets, rows)
+    _replace_results(session.path, run_id, result.depth, result.sigma, meta, rows, images)
+    if rows:
+        append_rows(session.path / LOG_NAME, rows)
+    seconds = time.perf_counter() - t0
+    log_event(session.path, "process", f"run {run_id}: ok, {len(rows)} targets, {seconds:.1f} s")
+    report("done", 1.0)
+    density = float(np.isfinite(result.depth).mean())
+    return Outcome(
+        session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
+        seconds, rows, warnings,
+    )
+
+
+def _exif_warnings(session: Session, force: bool) -> tuple[str, ...]:
+    """EXIF findings as warnings; InputError for a fatal one unless ``force``."""
+    from rigkit.rigcheck import check_capture
+
+    findings = check_capture(session.rig(), [session.frame_path(p) for p in POSITIONS])
+    fatal = [
+        f for f in findings
+        if f.code in FATAL_FINDINGS
+        or (f.code == "capture.mismatch" and f.field in FATAL_MISMATCH_FIELDS)
+    ]
+    if fatal and not force:
+        raise InputError(
+            f"{session.path}: " + "; ".join(f.message for f in fatal)
+            + " (--force processes it anyway)"
+        )
+    if [f.code for f in findings] == ["capture.no_exif"] * len(POSITIONS):
+        return ("no EXIF in any frame (e.g. rendered PNGs): capture settings not checked",)
+    return tuple(f.message for f in findings)
+
+
+# -- comparing targets with the depth map ----------------------------------------------------
+
+
+def compare_target(
+    session: Session, target: Target, depth: np.ndarray, sigma: np.ndarray, run_id: str
+) -> Comparison:
+    """The laser range of ``target`` against the depth map's range at its pixel.
+
+    ``depth``, ``sigma``: (H, W) float32, metres, z in the left camera. The estimate is
+    the median z over the target's window, turned into a 3D point on the centre pixel's
+    ray and measured from the laser's aperture (rig profile's rangefinder offset).
+    """
+    profile = session.rig()
+    height, width = depth.shape
+    half = target.window_px // 2
+    u, v = target.pixel
+    cu, cv = round(u), round(v)
+    rows = slice(max(cv - half, 0), min(cv + half + 1, height))
+    cols = slice(max(cu - half, 0), min(cu + half + 1, width))
+    window, window_sigma = depth[rows, cols], sigma[rows, cols]
+    finite = np.isfinite(window)
+    laser = np.array([r.slope_distance_m for r in target.readings], float)
+    laser_range = float(laser.mean()) if laser.size else math.nan
+    estimate = sigma_range = math.nan
+    if finite.any():
+        z = float(np.median(window[finite]))
+        z_sigma = float(np.median(window_sigma[finite]))
+        estimate = _range_from_z(z, (u, v), profile, (width, height))
+        sigma_range = z_sigma * estimate / z
+    status = STATUS_OK if finite.any() and laser.size else (
+        STATUS_NO_READING if not laser.size else STATUS_NO_ESTIMATE
+    )
+    error = estimate - laser_range
+    return Comparison(
+        run_id=run_id,
+        time_utc=utc_now(),
+        session=session.name,
+        target=target.name,
+        u=float(u),
+        v=float(v),
+        window_px=target.window_px,
+        laser_range_m=laser_range,
+        laser_readings=int(laser.size),
+        laser_spread_m=float(laser.std()) if laser.size else math.nan,
+        estimate_range_m=estimate,
+        estimate_sigma_m=sigma_range,
+        valid_fraction=float(finite.mean()),
+        error_m=error,
+        error_pct=100 * error / laser_range if laser.size else math.nan,
+        status=status,
+    )
+
+
+def _range_from_z(z: float, pixel: tuple[float, float], profile: Any, size: tuple[int, int]
+                  ) -> float:
+    """Distance from the laser aperture to the point at depth ``z`` on ``pixel``'s ray.
+
+    The principal point is the profile's, else the image centre (pixel centres at
+    integers); f is the profile's. The aperture offset is (right, up, forward) in the
+    left camera's frame (x right, y down, z forward).
+    """
+    camera = profile.cameras["left"]
+    width, height = size
+    if camera.principal_point_px is not None:
+        cx, cy = camera.principal_point_px[0] - 0.5, camera.principal_point_px[1] - 0.5
+    else:
+        cx, cy = (width - 1) / 2, (height - 1) / 2
+    f = profile.focal_px
+    point = np.array([(pixel[0] - cx) / f * z, (pixel[1] - cy) / f * z, z])
+    offset = (0.0, 0.0, 0.0)
+    if profile.rangefinder is not None and profile.rangefinder.offset_m is not None:
+        offset = profile.rangefinder.offset_m
+    aperture = np.array([offset[0], -offset[1], offset[2]])
+    return float(np.linalg.norm(point - aperture))
+
+
+# -- writing results -------------------------------------------------------------------------
+
+
+def _previews(
+    left: np.ndarray,
+    depth: np.ndarray,
+    sigma: np.ndarray,
+    targets: Sequence[Target],
+    rows: Sequence[Comparison],
+) -> dict[str, np.ndarray]:
+    from rigkit.annotate import mark_targets
+    from rigkit.preview import colorize, depth_range
+
+    lo, hi = depth_range(depth)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        relative = 100 * sigma / depth
+    grey = np.repeat(np.clip(left, 0, 255).astype(np.uint8)[..., None], 3, axis=2)
+    return {
+        "depth.png": mark_targets(colorize(depth, lo, hi, "depth z (m)"), depth.shape,
+                                  targets, rows),
+        "sigma.png": colorize(relative, 0.0, 2.0, "1-sigma error (% of depth)"),
+        "left.png": mark_targets(_shrink(grey), depth.shape, targets, rows),
+    }
+
+
+def _shrink(img: np.ndarray) -> np.ndarray:
+    import cv2
+
+    from rigkit.preview import PREVIEW_WIDTH
+
+    scale = min(1.0, PREVIEW_WIDTH / img.shape[1])
+    if scale == 1.0:
+        return img
+    size = (round(img.shape[1] * scale), round(img.shape[0] * scale))
+    return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+
+
+def _replace_results(
+    session_path: Path,
+    run_id: str,
+    depth: np.ndarray,
+    sigma: np.ndarray,
+    meta: dict[str, Any],
+    rows: Sequence[Comparison],
+    images: dict[str, np.ndarray],
+) -> None:
+    """Write everything to ``.results-<run>/``, then swap it in for ``results/``."""
+    from rigkit.comparisons import append_rows as write_rows
+    from rigkit.preview import write_png
+
+    recover_results(session_path)
+    staging = session_path / f".results-{run_id}"
+    staging.mkdir()
+    try:
+        np.save(staging / "depth.npy", depth)
+        np.save(staging / "sigma.npy", sigma)
+        (staging / "depth.json").write_text(json.dumps(meta, indent=2))
+        if rows:
+            write_rows(staging / "comparisons.csv", rows)
+        for name, img in images.items():
+            write_png(staging / name, img)
+        _swap_in(session_path, staging, run_id)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+def _swap_in(session_path: Path, staging: Path, run_id: str) -> None:
+    current = session_path / RESULTS_DIR
+    retired = session_path / f".results-old-{run_id}"
+    if current.exists():
+        os.rename(current, retired)
+    os.rename(staging, current)
+    shutil.rmtree(retired, ignore_errors=True)
+
+
+def recover_results(session_path: Path) -> None:
+    """Undo an interrupted swap: restore the newest retired results if ``results/`` is
+    gone, and delete staging folders a crash left behind."""
+    current = session_path / RESULTS_DIR
+    retired = sorted(session_path.glob(".results-old-*"))
+    if not current.exists() and retired:
+        os.rename(retired.pop(), current)
+    for leftover in [*retired, *session_path.glob(".results-2*")]:
+        shutil.rmtree(leftover, ignore_errors=True)
+
+
+# -- many sessions ---------------------------------------------------------------------------
+
+
+def safe_process(
+    path: Path, run_id: str, force: bool = False, progress: StageReport | None = None
+) -> Outcome:
+    """:func:`process_session` that turns any failure into a failed Outcome."""
+    t0 = time.perf_counter()
+    try:
+        return process_session(path, run_id, force=force, progress=progress)
+    except RigkitError as exc:
+        message = str(exc)
+    except MemoryError:
+        message = "out of memory (process fewer sessions at once: --jobs 1)"
+    except Exception as exc:  # a bug must not stop the batch; the trace goes to the log
+        message = f"internal error ({type(exc).__name__}: {exc}); please report it"
+        _log_failure(path, run_id, message + "\n" + traceback.format_exc())
+        return Outcome(path, False, message, time.perf_counter() - t0)
+    _log_failure(path, run_id, message)
+    return Outcome(path, False, message, time.perf_counter() - t0)
+
+
+def _log_failure(path: Path, run_id: str, message: str) -> None:
+    if (path / "session.yaml").is_file():
+        try:
+            detail = message.strip().replace("\n", "\n    ")  # a trace stays indented
+            log_event(path, "process", f"run {run_id}: FAILED: {detail}")
+        except OSError:
+            pass  # a read-only session cannot record its failure; the batch still reports it
+
+
+def auto_jobs(paths: Sequence[Path], available_bytes: int | None = None) -> int:
+    """How many sessions to run at once: bounded by cores and by available memory."""
+    largest = max((_session_pixels(p) for p in paths), default=0)
+    need = BASE_BYTES + BYTES_PER_PIXEL * largest
+    available = available_bytes if available_bytes is not None else _available_memory()
+    by_memory = max(1, int(0.8 * available // need))
+    return max(1, min(by_memory, os.cpu_count() or 1, len(paths)))
+
+
+def _session_pixels(path: Path) -> int:
+    try:
+        frames = load_session(path).frames
+    except RigkitError:
+        return 0
+    return max((f.size_px[0] * f.size_px[1] for f in frames.values()), default=0)
+
+
+def _available_memory() -> int:
+    try:
+        with open("/proc/meminfo", encoding="ascii") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+
+
+BatchReport = Callable[[Path, str, float], None]
+
+
+def run_batch(
+    paths: Sequence[Path],
+    jobs: int,
+    *,
+    run_id: str | None = None,
+    force: bool = False,
+    progress: BatchReport | None = None,
+    on_done: Callable[[Outcome], None] | None = None,
+) -> list[Outcome]:
+    """Process sessions, ``jobs`` at a time; outcomes in the order of ``paths``.
+
+    ``progress(session, stage, fraction)`` reports each session's stages;
+    ``on_done(outcome)`` is called as each session finishes.
+    """
+    run_id = run_id or new_run_id()
+    report = progress or (lambda path, stage, fraction: None)
+    done = on_done or (lambda outcome: None)
+    if jobs <= 1 or len(paths) <= 1:
+        outcomes = []
+        for path in paths:
+            outcome = safe_process(path, run_id, force, lambda s, f, p=path: report(p, s, f))
+            done(outcome)
+            outcomes.append(outcome)
+        return outcomes
+    return _run_parallel(paths, jobs, run_id, force, report, done)
+
+
+def _run_parallel(
+    paths: Sequence[Path],
+    jobs: int,
+    run_id: str,
+    force: bool,
+    report: BatchReport,
+    done: Callable[[Outcome], None],
+) -> list[Outcome]:
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue()
+    threads = max(1, (os.cpu_count() or 1) // jobs)
+    listener = threading.Thread(target=_relay, args=(queue, report), daemon=True)
+    listener.start()
+    try:
+        with ProcessPoolExecutor(
+            max_workers=jobs, mp_context=context, initializer=_init_worker,
+            initargs=(queue, threads),
+        ) as pool:
+            futures: dict[Future[Outcome], Path] = {
+                pool.submit(_worker_process, path, run_id, force): path for path in paths
+            }
+            outcomes: dict[Path, Outcome] = {}
+            for future in as_completed(futures):
+                outcome = _collect(future, futures[future], run_id)
+                outcomes[outcome.path] = outcome
+                done(outcome)
+            return [outcomes[path] for path in paths]
+    finally:
+        queue.put(None)
+        listener.join(timeout=5)
+
+
+def _collect(future: Future[Outcome], path: Path, run_id: str) -> Outcome:
+    """A finished worker's Outcome; a worker that died (e.g. killed for memory) fails
+    only its own session."""
+    try:
+        return future.result()
+    except Exception as exc:
+        message = f"worker process died ({type(exc).__name__}); out of memory? try --jobs 1"
+        _log_failure(path, run_id, message)
+        return Outcome(path, False, message, 0.0)
+
+
+def _relay(queue: Any, report: BatchReport) -> None:
+    while (item := queue.get()) is not None:
+        report(*item)
+
+
+_worker_queue: Any = None
+
+
+def _init_worker(queue: Any, threads: int) -> None:
+    import cv2
+
+    global _worker_queue
+    _worker_queue = queue
+    cv2.setNumThreads(threads)
+
+
+def _worker_process(path: Path, run_id: str, force: bool) -> Outcome:
+    def report(stage: str, fraction: float) -> None:
+        _worker_queue.put((path, stage, fraction))
+
+    return safe_process(path, run_id, force, report)

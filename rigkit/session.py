@@ -1,0 +1,654 @@
+"""Capture sessions: the frames, laser targets and rig of one field capture, in a folder.
+
+Layout of ``capture/<session>/`` (see ``docs/sessions.md``)::
+
+    session.yaml      what the session is: rig (reference and a copy of its values),
+                      frames (which file is which position, content hash, EXIF),
+                      targets (pixel, window, laser readings), notes, timestamps
+    raw/              the original files, copied in byte for byte; rigkit never
+                      modifies or deletes anything here
+    derived/          decoded RAW frames, cached by content hash (safe to delete)
+    results/          the newest ``rigkit process`` output, replaced as a whole
+    comparisons.csv   rangefinder-vs-estimate rows, appended by every run
+    history.log       append-only log of everything rigkit did to the session
+
+Every change to ``session.yaml`` is written to a temporary file and renamed into place,
+so the file is always either the old or the new version.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import re
+import secrets
+import shutil
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from rigkit.errors import InputError
+from rigkit.exif import ExifInfo, read_exif
+from rigkit.rig import RigProfile, load_rig, read_strict_yaml, rig_from_data, rig_to_dict
+
+SESSION_FILE = "session.yaml"
+FORMAT = "rigkit-session/1"
+POSITIONS = ("left", "right", "back")
+RAW_DIR = "raw"
+DERIVED_DIR = "derived"
+RESULTS_DIR = "results"
+HISTORY_FILE = "history.log"
+DEFAULT_WINDOW_PX = 9
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+
+
+def utc_now() -> str:
+    """The current time as ISO 8601 UTC with a Z, to the second."""
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One camera position's file.
+
+    ``file``: path relative to the session folder (under ``raw/``). ``sha256``: hex
+    digest of its bytes at ingest. ``size_px``: (width, height) of the decoded image.
+    ``source``: where it was copied from. ``exif``: the fields rigkit checks (units as
+    in :class:`rigkit.exif.ExifInfo`; absent fields left out).
+    """
+
+    position: str
+    file: str
+    sha256: str
+    size_px: tuple[int, int]
+    added_utc: str
+    source: str
+    exif: Mapping[str, Any] = field(default_factory=dict, hash=False)
+
+
+@dataclass(frozen=True)
+class LaserReading:
+    """One rangefinder shot at a target.
+
+    ``slope_distance_m``: range along the laser's line of sight from its aperture, m.
+    ``inclination_deg``: above the horizontal, None if not reported. ``source``:
+    ``manual`` (typed in), ``simulated`` or ``<protocol>:<port>`` for a device.
+    ``raw``: the device's frame as text, if any.
+    """
+
+    slope_distance_m: float
+    time_utc: str
+    source: str
+    inclination_deg: float | None = None
+    raw: str | None = None
+
+
+@dataclass(frozen=True)
+class Target:
+    """A point the laser was aimed at.
+
+    ``pixel``: (u, v) in the original left image, px, x right and y down, pixel centres
+    at integers. ``window_px``: side of the square window (odd) the depth estimate is
+    taken over.
+    """
+
+    name: str
+    pixel: tuple[float, float]
+    window_px: int
+    readings: tuple[LaserReading, ...] = ()
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Session:
+    """A session as read from ``session.yaml``; ``path`` is its folder."""
+
+    path: Path
+    name: str
+    created_utc: str
+    rig_reference: str
+    rig_sha256: str
+    rig_values: Mapping[str, Any] = field(hash=False)
+    frames: Mapping[str, Frame] = field(hash=False)
+    targets: tuple[Target, ...] = ()
+    operator: str = ""
+    notes: str = ""
+
+    @property
+    def yaml_path(self) -> Path:
+        return self.path / SESSION_FILE
+
+    def rig(self) -> RigProfile:
+        """The rig profile from the copy of its values kept in the session."""
+        return rig_from_data(dict(self.rig_values), self.yaml_path, "rig.values")
+
+    def frame_path(self, position: str) -> Path:
+        """Absolute path of a position's file; InputError if the position has none."""
+        if position not in self.frames:
+            raise InputError(
+                f"{self.path}: no {position} frame (add it with "
+                f"`rigkit session add-frame {self.path} --position {position} FILE`)"
+            )
+        return self.path / self.frames[position].file
+
+    def target(self, name: str) -> Target:
+        for target in self.targets:
+            if target.name == name:
+                return target
+        raise InputError(f"{self.path}: no target named {name!r}")
+
+
+# -- reading and writing session.yaml ---------------------------------------------------
+
+
+def is_session(path: Path) -> bool:
+    return (path / SESSION_FILE).is_file()
+
+
+def load_session(path: str | Path) -> Session:
+    """Read and validate ``session.yaml``; InputError names the file and key."""
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError(f"{path}: no such session folder")
+    yaml_path = path / SESSION_FILE
+    if not yaml_path.is_file():
+        raise InputError(f"{path}: not a session folder (no {SESSION_FILE})")
+    data = read_strict_yaml(yaml_path, "session file")
+    return _session_from_data(data, path)
+
+
+def save_session(session: Session) -> None:
+    """Write ``session.yaml`` atomically (temporary file, fsync, rename)."""
+    text = "# rigkit capture session; edit with `rigkit session`\n" + yaml.safe_dump(
+        session_to_data(session), sort_keys=False, allow_unicode=True, default_flow_style=None
+    )
+    atomic_write_text(session.yaml_path, text)
+
+
+def temp_file(folder: Path, prefix: str) -> tuple[int, Path]:
+    """A new, empty, hidden file in ``folder`` opened for writing, with the usual
+    permissions (0666 less the umask; ``tempfile.mkstemp`` would make it private)."""
+    while True:
+        path = folder / f".{prefix}.{secrets.token_hex(4)}.tmp"
+        try:
+            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
+        except FileExistsError:
+            continue
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Replace ``path`` with ``text`` so readers see the old or the new file, never half."""
+    fd, tmp = temp_file(path.parent, path.name)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def log_event(session_path: Path, action: str, detail: str) -> None:
+    """Append one line to the session's ``history.log`` (never rewritten)."""
+    line = f"{utc_now()}  {action:<12} {detail}\n"
+    with (session_path / HISTORY_FILE).open("a", encoding="utf-8") as handle:
+        handle.write(line)
+
+
+class _Reader:
+    """Typed access to session.yaml values with errors naming the file and dotted key."""
+
+    def __init__(self, file: Path) -> None:
+        self.file = file
+
+    def fail(self, key: str, problem: str) -> InputError:
+        return InputError(f"{self.file}: {key}: {problem}")
+
+    def mapping(
+        self, value: Any, key: str, required: Sequence[str], optional: Sequence[str] = ()
+    ) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(key or "top level", "expected a mapping")
+        unknown = [k for k in value if k not in (*required, *optional)]
+        if unknown:
+            allowed = ", ".join((*required, *optional))
+            raise self.fail(_join(key, str(unknown[0])), f"unknown key (allowed: {allowed})")
+        missing = [k for k in required if k not in value]
+        if missing:
+            raise self.fail(_join(key, missing[0]), "missing")
+        return value
+
+    def text(self, value: Any, key: str) -> str:
+        if value is None:
+            return ""
+        if not isinstance(value, str):
+            raise self.fail(key, f"expected text, got {value!r}")
+        return value
+
+    def number(self, value: Any, key: str, positive: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(key, f"expected a number, got {value!r}")
+        if not math.isfinite(value) or (positive and value <= 0):
+            raise self.fail(key, f"expected a {'positive ' if positive else ''}number, "
+                            f"got {value!r}")
+        return float(value)
+
+    def pair(self, value: Any, key: str) -> tuple[float, float]:
+        if not isinstance(value, list) or len(value) != 2:
+            raise self.fail(key, f"expected [a, b], got {value!r}")
+        return self.number(value[0], key), self.number(value[1], key)
+
+
+def _join(key: str, child: str) -> str:
+    return f"{key}.{child}" if key else child
+
+
+def _session_from_data(data: Any, path: Path) -> Session:
+    r = _Reader(path / SESSION_FILE)
+    top = r.mapping(
+        data,
+        "",
+        required=("format", "name", "created_utc", "rig", "frames", "targets"),
+        optional=("operator", "notes"),
+    )
+    if top["format"] != FORMAT:
+        raise r.fail("format", f"expected {FORMAT}, got {top['format']!r}")
+    rig = r.mapping(top["rig"], "rig", required=("reference", "sha256", "values"))
+    frames_data = top["frames"] or {}
+    r.mapping(frames_data, "frames", required=(), optional=POSITIONS)
+    frames = {pos: _frame(r, value, f"frames.{pos}", pos) for pos, value in frames_data.items()}
+    targets_data = top["targets"] or []
+    if not isinstance(targets_data, list):
+        raise r.fail("targets", "expected a list")
+    targets = tuple(_target(r, value, f"targets[{i}]") for i, value in enumerate(targets_data))
+    names = [t.name for t in targets]
+    if len(set(names)) != len(names):
+        raise r.fail("targets", "two targets share a name")
+    session = Session(
+        path=path,
+        name=r.text(top["name"], "name"),
+        created_utc=r.text(top["created_utc"], "created_utc"),
+        rig_reference=r.text(rig["reference"], "rig.reference"),
+        rig_sha256=r.text(rig["sha256"], "rig.sha256"),
+        rig_values=rig["values"],
+        frames=frames,
+        targets=targets,
+        operator=r.text(top.get("operator"), "operator"),
+        notes=r.text(top.get("notes"), "notes"),
+    )
+    session.rig()  # validate the copied profile now, naming rig.values.<key>
+    return session
+
+
+def _frame(r: _Reader, value: Any, key: str, position: str) -> Frame:
+    keys = r.mapping(
+        value, key, required=("file", "sha256", "size_px", "added_utc", "source"),
+        optional=("exif",),
+    )
+    width, height = r.pair(keys["size_px"], f"{key}.size_px")
+    exif = keys.get("exif") or {}
+    if not isinstance(exif, dict):
+        raise r.fail(f"{key}.exif", "expected a mapping")
+    file = r.text(keys["file"], f"{key}.file")
+    if Path(file).is_absolute() or ".." in Path(file).parts:
+        raise r.fail(f"{key}.file", f"must be a path inside the session, got {file!r}")
+    return Frame(
+        position=position,
+        file=file,
+        sha256=r.text(keys["sha256"], f"{key}.sha256"),
+        size_px=(int(width), int(height)),
+        added_utc=r.text(keys["added_utc"], f"{key}.added_utc"),
+        source=r.text(keys["source"], f"{key}.source"),
+        exif=exif,
+    )
+
+
+def _target(r: _Reader, value: Any, key: str) -> Target:
+    keys = r.mapping(value, key, required=("name", "pixel"),
+                     optional=("window_px", "readings", "note"))
+    name = r.text(keys["name"], f"{key}.name")
+    _check_name(name, f"{r.file}: {key}.name")
+    window = keys.get("window_px", DEFAULT_WINDOW_PX)
+    if isinstance(window, bool) or not isinstance(window, int) or window < 1 or window % 2 == 0:
+        raise r.fail(f"{key}.window_px", f"expected an odd positive integer, got {window!r}")
+    readings_data = keys.get("readings") or []
+    if not isinstance(readings_data, list):
+        raise r.fail(f"{key}.readings", "expected a list")
+    readings = tuple(
+        _reading(r, item, f"{key}.readings[{i}]") for i, item in enumerate(readings_data)
+    )
+    return Target(
+        name=name,
+        pixel=r.pair(keys["pixel"], f"{key}.pixel"),
+        window_px=window,
+        readings=readings,
+        note=r.text(keys.get("note"), f"{key}.note"),
+    )
+
+
+def _reading(r: _Reader, value: Any, key: str) -> LaserReading:
+    keys = r.mapping(
+        value, key, required=("slope_distance_m", "time_utc", "source"),
+        optional=("inclination_deg", "raw"),
+    )
+    inclination = keys.get("inclination_deg")
+    return LaserReading(
+        slope_distance_m=r.number(keys["slope_distance_m"], f"{key}.slope_distance_m", True),
+        time_utc=r.text(keys["time_utc"], f"{key}.time_utc"),
+        source=r.text(keys["source"], f"{key}.source"),
+        inclination_deg=None if inclination is None
+        else r.number(inclination, f"{key}.inclination_deg"),
+        raw=keys.get("raw"),
+    )
+
+
+def session_to_data(session: Session) -> dict[str, Any]:
+    data: dict[str, Any] = {
+        "format": FORMAT,
+        "name": session.name,
+        "created_utc": session.created_utc,
+    }
+    if session.operator:
+        data["operator"] = session.operator
+    if session.notes:
+        data["notes"] = session.notes
+    data["rig"] = {
+        "reference": session.rig_reference,
+        "sha256": session.rig_sha256,
+        "values": dict(session.rig_values),
+    }
+    data["frames"] = {
+        pos: _frame_to_data(session.frames[pos]) for pos in POSITIONS if pos in session.frames
+    }
+    data["targets"] = [_target_to_data(t) for t in session.targets]
+    return data
+
+
+def _frame_to_data(frame: Frame) -> dict[str, Any]:
+    return {
+        "file": frame.file,
+        "sha256": frame.sha256,
+        "size_px": list(frame.size_px),
+        "added_utc": frame.added_utc,
+        "source": frame.source,
+        "exif": dict(frame.exif),
+    }
+
+
+def _target_to_data(target: Target) -> dict[str, Any]:
+    data: dict[str, Any] = {
+        "name": target.name,
+        "pixel": [float(target.pixel[0]), float(target.pixel[1])],
+        "window_px": target.window_px,
+    }
+    if target.note:
+        data["note"] = target.note
+    data["readings"] = [_reading_to_data(reading) for reading in target.readings]
+    return data
+
+
+def _reading_to_data(reading: LaserReading) -> dict[str, Any]:
+    data: dict[str, Any] = {
+        "slope_distance_m": reading.slope_distance_m,
+        "time_utc": reading.time_utc,
+        "source": reading.source,
+    }
+    if reading.inclination_deg is not None:
+        data["inclination_deg"] = reading.inclination_deg
+    if reading.raw is not None:
+        data["raw"] = reading.raw
+    return data
+
+
+# -- operations ---------------------------------------------------------------------------
+
+
+def _check_name(name: str, where: str) -> None:
+    if not _NAME.match(name):
+        raise InputError(
+            f"{where}: {name!r} is not a usable name (letters, digits, '.', '_', '-'; "
+            "starting with a letter or digit)"
+        )
+
+
+def create_session(
+    path: str | Path, rig_path: str | Path, *, operator: str = "", notes: str = ""
+) -> Session:
+    """Create a new session folder holding a copy of the rig profile's values.
+
+    The folder may exist but must not already be a session. The profile is validated
+    first; nothing is written if it is bad.
+    """
+    path = Path(path)
+    rig_path = Path(rig_path)
+    _check_name(path.name, "session name")
+    if is_session(path):
+        raise InputError(f"{path}: already a session ({SESSION_FILE} exists)")
+    profile = load_rig(rig_path)
+    session = Session(
+        path=path,
+        name=path.name,
+        created_utc=utc_now(),
+        rig_reference=_reference(rig_path, path),
+        rig_sha256=file_sha256(rig_path),
+        rig_values=rig_to_dict(profile),
+        frames={},
+        operator=operator,
+        notes=notes,
+    )
+    (path / RAW_DIR).mkdir(parents=True, exist_ok=True)
+    save_session(session)
+    log_event(path, "new", f"rig {rig_path} ({profile.name})")
+    return session
+
+
+def _reference(rig_path: Path, session_path: Path) -> str:
+    """How session.yaml names the rig file: relative if it is inside the session."""
+    try:
+        return str(rig_path.resolve().relative_to(session_path.resolve()))
+    except ValueError:
+        return str(rig_path.resolve())
+
+
+def file_sha256(path: Path) -> str:
+    """Hex SHA-256 of a file's bytes, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    try:
+        with path.open("rb") as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                digest.update(block)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc})") from None
+    return digest.hexdigest()
+
+
+def add_frame(
+    session: Session, position: str, source: str | Path, *, replace_existing: bool = False
+) -> Session:
+    """Copy ``source`` into ``raw/`` as the frame for ``position`` and record it.
+
+    The file is copied byte for byte (never moved), hashed, and checked to decode; its
+    EXIF is recorded. An existing frame for the position is only replaced with
+    ``replace_existing``; its file stays in ``raw/``. A file already in ``raw/`` (same
+    name) is never overwritten: identical content is reused, different content refused.
+    """
+    from rigkit.frames import image_size
+
+    if position not in POSITIONS:
+        raise InputError(f"position {position!r}: expected one of {', '.join(POSITIONS)}")
+    source = Path(source)
+    if not source.is_file():
+        raise InputError(f"{source}: no such file")
+    if position in session.frames and not replace_existing:
+        raise InputError(
+            f"{session.path}: already has a {position} frame "
+            f"({session.frames[position].file}); use --replace to swap it"
+        )
+    sha256 = file_sha256(source)
+    # Decode before copying: a file that does not decode never enters raw/. The decoded
+    # image is cached by content hash, so processing will not decode it again.
+    size = image_size(source, session.path / DERIVED_DIR, sha256)
+    exif = read_exif(source)
+    stored = _ingest(session.path / RAW_DIR, source, position, sha256)
+    frame = Frame(
+        position=position,
+        file=f"{RAW_DIR}/{stored.name}",
+        sha256=sha256,
+        size_px=size,
+        added_utc=utc_now(),
+        source=str(source.resolve()),
+        exif=exif_fields(exif),
+    )
+    _check_same_size(session, frame)
+    updated = replace(session, frames={**session.frames, position: frame})
+    save_session(updated)
+    log_event(
+        session.path, "add-frame",
+        f"{position} {frame.file} sha256={frame.sha256} from {frame.source}",
+    )
+    return updated
+
+
+def _check_same_size(session: Session, frame: Frame) -> None:
+    for other in session.frames.values():
+        if other.position != frame.position and other.size_px != frame.size_px:
+            raise InputError(
+                f"{frame.source}: {frame.size_px[0]}x{frame.size_px[1]} px, but the "
+                f"{other.position} frame ({other.file}) is "
+                f"{other.size_px[0]}x{other.size_px[1]} px; all three must match"
+            )
+
+
+def _ingest(raw_dir: Path, source: Path, position: str, wanted: str) -> Path:
+    """Copy ``source`` (SHA-256 ``wanted``) into ``raw_dir`` without overwriting anything.
+
+    Keeps the original file name; if a different file already has it, prefixes the
+    position. Returns the stored path.
+    """
+    raw_dir.mkdir(parents=True, exist_ok=True)
+    for name in (source.name, f"{position}-{source.name}"):
+        target = raw_dir / name
+        if target.exists():
+            if file_sha256(target) == wanted:
+                return target
+            continue
+        fd, tmp = temp_file(raw_dir, "ingest")
+        try:
+            with os.fdopen(fd, "wb") as out, source.open("rb") as original:
+                shutil.copyfileobj(original, out, 1 << 20)
+                out.flush()
+                os.fsync(out.fileno())
+            if file_sha256(tmp) != wanted:
+                raise InputError(f"{source}: changed while it was being read; try again")
+            os.link(tmp, target)  # fails rather than overwrite a file that appeared meanwhile
+        finally:
+            tmp.unlink(missing_ok=True)
+        return target
+    raise InputError(
+        f"{raw_dir}: already holds different files named {source.name} and "
+        f"{position}-{source.name}; rename the file to add"
+    )
+
+
+def exif_fields(info: ExifInfo) -> dict[str, Any]:
+    """The EXIF fields worth keeping in session.yaml (absent ones left out)."""
+    keep = (
+        "make", "model", "focal_length_mm", "focal_length_35mm_mm", "exposure_time_s",
+        "f_number", "iso", "datetime_original",
+    )
+    return {name: getattr(info, name) for name in keep if getattr(info, name) is not None}
+
+
+def add_target(
+    session: Session,
+    name: str,
+    pixel: tuple[float, float],
+    *,
+    window_px: int = DEFAULT_WINDOW_PX,
+    readings: Sequence[LaserReading] = (),
+    note: str = "",
+) -> Session:
+    """Add a target, or add readings to an existing one of the same name.
+
+    The pixel must lie inside the left frame (when it is known) and the window must be an
+    odd number of pixels.
+    """
+    _check_name(name, "target name")
+    if window_px < 1 or window_px % 2 == 0:
+        raise InputError(f"--window {window_px}: expected an odd number of pixels (e.g. 9)")
+    for reading in readings:
+        if not (math.isfinite(reading.slope_distance_m) and reading.slope_distance_m > 0):
+            raise InputError(f"range {reading.slope_distance_m}: expected a positive distance")
+    existing = {t.name: t for t in session.targets}
+    if name in existing:
+        old = existing[name]
+        if (tuple(pixel) != old.pixel) or window_px != old.window_px:
+            raise InputError(
+                f"{session.path}: target {name!r} is already at pixel "
+                f"({old.pixel[0]:g}, {old.pixel[1]:g}) window {old.window_px}; "
+                "give its pixel and window to add readings, or choose a new name"
+            )
+        target = replace(old, readings=old.readings + tuple(readings))
+        targets = tuple(target if t.name == name else t for t in session.targets)
+    else:
+        target = Target(name, (float(pixel[0]), float(pixel[1])), window_px, tuple(readings),
+                        note)
+        check_target_inside(session, target)
+        targets = session.targets + (target,)
+    updated = replace(session, targets=targets)
+    save_session(updated)
+    shots = ", ".join(f"{r.slope_distance_m:.2f} m ({r.source})" for r in readings) or "none"
+    log_event(
+        session.path, "add-target",
+        f"{name} pixel ({target.pixel[0]:g}, {target.pixel[1]:g}) window {window_px} "
+        f"readings {shots}",
+    )
+    return updated
+
+
+def check_target_inside(session: Session, target: Target) -> None:
+    """InputError if the target's pixel is outside the left frame (when known)."""
+    left = session.frames.get("left")
+    if left is None:
+        return
+    width, height = left.size_px
+    u, v = target.pixel
+    if not (-0.5 <= u <= width - 0.5 and -0.5 <= v <= height - 0.5):
+        raise InputError(
+            f"{session.path}: target {target.name!r} pixel ({u:g}, {v:g}) is outside the "
+            f"{width}x{height} left image"
+        )
+
+
+def frame_problems(session: Session) -> list[str]:
+    """Why the session cannot be processed yet: missing or altered frames, targets
+    outside the image. Empty when it is ready."""
+    problems = []
+    for position in POSITIONS:
+        frame = session.frames.get(position)
+        if frame is None:
+            problems.append(f"no {position} frame")
+            continue
+        path = session.path / frame.file
+        if not path.is_file():
+            problems.append(f"{position} frame {frame.file} is missing")
+        elif file_sha256(path) != frame.sha256:
+            problems.append(
+                f"{position} frame {frame.file} no longer matches the hash recorded at "
+                "ingest (the original was changed)"
+            )
+    for target in session.targets:
+        try:
+            check_target_inside(session, target)
+        except InputError as exc:
+            problems.append(str(exc).split(": ", 1)[1])
+    return problems

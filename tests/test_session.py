@@ -1,0 +1,193 @@
+"""Capture sessions: session.yaml round trip, frame ingest, targets, validation errors."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+from conftest import copy_session
+
+from rigkit.cli import main
+from rigkit.errors import InputError
+from rigkit.session import (
+    LaserReading,
+    add_frame,
+    add_target,
+    create_session,
+    frame_problems,
+    load_session,
+)
+
+RIG = Path(__file__).resolve().parents[1] / "rigs" / "synthetic.yaml"
+
+
+def sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def png(path: Path, size: tuple[int, int] = (64, 48), seed: int = 0) -> Path:
+    rng = np.random.default_rng(seed)
+    cv2.imwrite(str(path), rng.integers(0, 255, (size[1], size[0]), np.uint8))
+    return path
+
+
+def test_new_session_keeps_a_copy_of_the_rig(tmp_path: Path) -> None:
+    session = create_session(tmp_path / "s1", RIG, operator="A. Field", notes="windy")
+    again = load_session(tmp_path / "s1")
+    assert again == session
+    assert again.rig().focal_px == pytest.approx(43962.93892852579)
+    assert again.rig_sha256 == sha(RIG)
+    assert (tmp_path / "s1" / "raw").is_dir()
+    assert "new" in (tmp_path / "s1" / "history.log").read_text()
+    with pytest.raises(InputError, match="already a session"):
+        create_session(tmp_path / "s1", RIG)
+
+
+def test_bad_rig_writes_nothing(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("version: 1\nname: x\n")
+    with pytest.raises(InputError, match="bad.yaml"):
+        create_session(tmp_path / "s1", bad)
+    assert not (tmp_path / "s1").exists()
+
+
+def test_add_frame_copies_byte_for_byte(tmp_path: Path) -> None:
+    source = png(tmp_path / "DSC_0001.png")
+    before = sha(source)
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", source)
+    frame = session.frames["left"]
+    stored = tmp_path / "s" / frame.file
+    assert frame.file == "raw/DSC_0001.png"
+    assert sha(stored) == frame.sha256 == before == sha(source)
+    assert frame.size_px == (64, 48)
+    assert load_session(tmp_path / "s").frames["left"] == frame
+
+
+def test_replacing_a_frame_keeps_the_old_file(tmp_path: Path) -> None:
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    with pytest.raises(InputError, match="already has a left frame"):
+        add_frame(session, "left", png(tmp_path / "b.png", seed=1))
+    session = add_frame(session, "left", png(tmp_path / "b.png", seed=1), replace_existing=True)
+    assert session.frames["left"].file == "raw/b.png"
+    assert (tmp_path / "s" / "raw" / "a.png").is_file()
+
+
+def test_same_name_different_content_is_not_overwritten(tmp_path: Path) -> None:
+    (tmp_path / "day1").mkdir()
+    (tmp_path / "day2").mkdir()
+    first = png(tmp_path / "day1" / "IMG.png", seed=1)
+    second = png(tmp_path / "day2" / "IMG.png", seed=2)
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", first)
+    session = add_frame(session, "right", second)
+    assert session.frames["right"].file == "raw/right-IMG.png"
+    assert sha(tmp_path / "s" / "raw" / "IMG.png") == sha(first)
+
+
+def test_unreadable_frame_never_enters_raw(tmp_path: Path) -> None:
+    garbage = tmp_path / "DSC_0002.NEF"
+    garbage.write_bytes(b"not a raw file" * 100)
+    session = create_session(tmp_path / "s", RIG)
+    with pytest.raises(InputError, match="DSC_0002.NEF"):
+        add_frame(session, "left", garbage)
+    assert list((tmp_path / "s" / "raw").iterdir()) == []
+    assert load_session(tmp_path / "s").frames == {}
+
+
+def test_frames_must_share_a_size(tmp_path: Path) -> None:
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    with pytest.raises(InputError, match="64x48"):
+        add_frame(session, "right", png(tmp_path / "b.png", size=(80, 48)))
+
+
+def test_targets_outside_the_image_and_even_windows_are_refused(tmp_path: Path) -> None:
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    reading = [LaserReading(300.0, "2026-11-22T10:00:00Z", "manual")]
+    with pytest.raises(InputError, match=r"outside the 64x48 left image"):
+        add_target(session, "T1", (64.0, 10.0), readings=reading)
+    with pytest.raises(InputError, match="odd"):
+        add_target(session, "T1", (10.0, 10.0), window_px=8, readings=reading)
+    with pytest.raises(InputError, match="positive"):
+        add_target(session, "T1", (10.0, 10.0), readings=[LaserReading(-1, "t", "manual")])
+
+
+def test_more_readings_for_a_target(tmp_path: Path) -> None:
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    session = add_target(session, "mast", (10, 20), readings=[LaserReading(301.0, "t", "manual")])
+    session = add_target(session, "mast", (10, 20), readings=[LaserReading(301.4, "t", "manual")])
+    assert [r.slope_distance_m for r in load_session(session.path).target("mast").readings] == [
+        301.0, 301.4
+    ]
+    with pytest.raises(InputError, match="already at pixel"):
+        add_target(session, "mast", (11, 20))
+
+
+def test_problems_name_missing_and_altered_frames(synth_session: Path, tmp_path: Path) -> None:
+    copy = copy_session(synth_session, tmp_path)
+    assert frame_problems(load_session(copy)) == []
+    (copy / "raw" / "back.png").unlink()
+    with (copy / "raw" / "right.png").open("ab") as handle:
+        handle.write(b"\0")
+    problems = frame_problems(load_session(copy))
+    assert any("back frame raw/back.png is missing" in p for p in problems)
+    assert any("right frame raw/right.png no longer matches" in p for p in problems)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d.update(extra=1), "extra: unknown key"),
+        (lambda d: d["targets"][0].update(window_px=4), r"targets\[0\].window_px"),
+        (lambda d: d["targets"][0].update(pixel=[1]), r"targets\[0\].pixel"),
+        (lambda d: d["frames"]["left"].update(file="/etc/passwd"), "frames.left.file"),
+        (lambda d: d["rig"]["values"]["baselines"]["C_lr"].update(value_m=-2),
+         "rig.values.baselines.C_lr"),
+        (lambda d: d["targets"][0]["readings"][0].update(slope_distance_m="far"),
+         r"readings\[0\].slope_distance_m"),
+        (lambda d: d.update(format="other/9"), "format"),
+    ],
+)
+def test_bad_session_yaml_names_file_and_key(
+    synth_session: Path, tmp_path: Path, edit, message: str
+) -> None:
+    copy = copy_session(synth_session, tmp_path)
+    data = yaml.safe_load((copy / "session.yaml").read_text())
+    edit(data)
+    (copy / "session.yaml").write_text(yaml.safe_dump(data))
+    with pytest.raises(InputError, match=message) as info:
+        load_session(copy)
+    assert "session.yaml" in str(info.value)
+
+
+def test_cli_session_workflow(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    s = str(tmp_path / "field-1")
+    assert main(["session", "new", s, "--rig", str(RIG), "--notes", "test"]) == 0
+    for i, position in enumerate(("left", "right", "back")):
+        frame = png(tmp_path / f"{position}.png", seed=i)
+        assert main(["session", "add-frame", s, "--position", position, str(frame)]) == 0
+    assert main(["session", "add-target", s, "--pixel", "30", "20", "--range-m", "300.5",
+                 "300.7"]) == 0
+    assert main(["session", "add-target", s, "--pixel", "99", "20", "--range-m", "300"]) == 2
+    assert "outside the 64x48 left image" in capsys.readouterr().err
+    assert main(["session", "show", s]) == 0
+    shown = capsys.readouterr().out
+    assert "T1" in shown and "300.50, 300.70" in shown and "ready to process" in shown
+    assert main(["session", "show", s, "--json"]) == 0
+
+
+def test_cli_target_from_a_simulated_rangefinder(tmp_path: Path) -> None:
+    s = tmp_path / "field-2"
+    create_session(s, RIG)
+    add_frame(load_session(s), "left", png(tmp_path / "left.png"))
+    code = main(["session", "add-target", str(s), "--name", "barn", "--pixel", "20", "20",
+                 "--device", "sim://trupulse?distance=412.3&interval=0.01", "--shots", "2",
+                 "--timeout", "5"])
+    assert code == 0
+    readings = load_session(s).target("barn").readings
+    assert len(readings) == 2
+    assert readings[0].source.startswith("trupulse:sim://")
+    assert readings[0].slope_distance_m == pytest.approx(412.3, abs=1.0)
+    assert readings[0].raw and readings[0].raw.startswith("$PLTIT")
