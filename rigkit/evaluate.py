@@ -95,12 +95,15 @@ def failed_metrics(scene: str, reason: str) -> Metrics:
     return Metrics(scene, 0, 0.0, nan, nan, nan, nan, nan, failed=True, reason=reason)
 
 
-def find_estimate(depth_dir: Path, scene_dir: Path) -> Path | None:
-    """``DEPTH_DIR/<scene>.npy`` or ``DEPTH_DIR/<scene>/depth.npy``, whichever exists."""
-    for cand in (depth_dir / f"{scene_dir.name}.npy", depth_dir / scene_dir.name / "depth.npy"):
-        if cand.is_file():
-            return cand
-    return None
+def find_estimate(depth_dir: Path | None, scene_dir: Path) -> Path | None:
+    """``DEPTH_DIR/<scene>.npy`` or ``DEPTH_DIR/<scene>/depth.npy``, whichever exists;
+    without ``depth_dir``, the scene's own ``results/depth.npy`` (a processed synthetic
+    session)."""
+    if depth_dir is None:
+        candidates = [scene_dir / "results" / "depth.npy"]
+    else:
+        candidates = [depth_dir / f"{scene_dir.name}.npy", depth_dir / scene_dir.name / "depth.npy"]
+    return next((c for c in candidates if c.is_file()), None)
 
 
 def evaluate_scene(scene_dir: Path, estimate_path: Path | None) -> Metrics:
@@ -115,7 +118,7 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None) -> Metrics:
     return depth_metrics(est, truth.depth("left"), visible_in_right(truth), name)
 
 
-def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path) -> list[Metrics]:
+def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[Metrics]:
     return [evaluate_scene(d, find_estimate(depth_dir, d)) for d in scene_dirs]
 
 

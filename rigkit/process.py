@@ -411,11 +411,15 @@ def run_batch(
     if jobs <= 1 or len(paths) <= 1:
         outcomes = []
         for path in paths:
-            outcome = safe_process(path, run_id, force, lambda s, f, p=path: report(p, s, f))
+            outcome = safe_process(path, run_id, force, _for_session(report, path))
             done(outcome)
             outcomes.append(outcome)
         return outcomes
     return _run_parallel(paths, jobs, run_id, force, report, done)
+
+
+def _for_session(report: BatchReport, path: Path) -> StageReport:
+    return lambda stage, fraction: report(path, stage, fraction)
 
 
 def _run_parallel(

@@ -23,6 +23,7 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +59,8 @@ AFFINE_LIMIT = 0.01
 OVERLAP_LIMIT = 0.5
 """Warn when the left and right views overlap by less than this fraction of the width."""
 EXIF_MM_STEP = 0.1
+# Longest plausible time between the first and last frame of one capture, seconds.
+MAX_CAPTURE_SPAN_S = 30 * 60.0
 """EXIF FocalLength is usually recorded to 0.1 mm; FocalLengthIn35mmFilm to whole mm."""
 
 
@@ -381,7 +384,38 @@ def check_capture(profile: RigProfile, paths: Sequence[str | Path]) -> list[Find
         findings += _consistency(present, attribute, tag)
     for role, info in present.items():
         findings += _against_profile(role, info, profile.cameras[role])
+    findings += _time_findings(present)
     return findings
+
+
+def _time_findings(frames: dict[str, ExifInfo]) -> list[Finding]:
+    """A finding when the frames' capture times are unreadable or spread too far apart.
+
+    One camera moved between three tripod positions takes minutes; beyond
+    MAX_CAPTURE_SPAN_S the light, shadows or the scene itself may have changed.
+    """
+    times: dict[str, datetime] = {}
+    found = []
+    for role, info in frames.items():
+        if info.datetime_original is None:
+            continue
+        try:
+            times[role] = datetime.strptime(info.datetime_original, "%Y:%m:%d %H:%M:%S")
+        except ValueError:
+            message = f"{_frame(role, info)}: unreadable DateTimeOriginal " \
+                f"{info.datetime_original!r}"
+            found.append(Finding("capture.bad_time", message, role, "DateTimeOriginal"))
+    if len(times) >= 2:
+        first, last = min(times.values()), max(times.values())
+        span = (last - first).total_seconds()
+        if span > MAX_CAPTURE_SPAN_S:
+            order = ", ".join(f"{role} {t:%H:%M:%S}" for role, t in times.items())
+            message = (
+                f"frames taken {span / 60:.0f} min apart ({order}); over "
+                f"{MAX_CAPTURE_SPAN_S / 60:.0f} min the light or the scene may have changed"
+            )
+            found.append(Finding("capture.time_spread", message, None, "DateTimeOriginal"))
+    return found
 
 
 def _frame(role: str, info: ExifInfo) -> str:

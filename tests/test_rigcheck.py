@@ -189,6 +189,7 @@ def _frame(path: Path, **changes: Any) -> Path:
         "f_number": IFDRational(56, 10),
         "iso": 200,
         "size": (4608, 3456),
+        "time": None,
     }
     tags.update(changes)
     exif = Image.Exif()
@@ -205,6 +206,8 @@ def _frame(path: Path, **changes: Any) -> Path:
         if tags[key] is not None:
             sub[tag] = tags[key]
     sub[0xA002], sub[0xA003] = tags["size"]
+    if tags["time"] is not None:
+        sub[0x9003] = tags["time"]
     Image.new("L", (8, 6)).save(path, exif=exif.tobytes())
     return path
 
@@ -258,6 +261,20 @@ def test_capture_mismatches_name_frame_and_field(tmp_path: Path) -> None:
         in messages
     )
     assert "back frame (B.jpg): FocalLengthIn35mmFilm 300 mm is 39,938 px, -25.0 %" in messages
+
+
+def test_capture_times_too_far_apart(tmp_path: Path) -> None:
+    times = ("2026:11:22 10:00:00", "2026:11:22 10:04:10", "2026:11:22 10:09:30")
+    frames = [_frame(tmp_path / f"{i}.jpg", time=t) for i, t in enumerate(times)]
+    assert check_capture(load_rig(P1000), frames) == []
+    frames[2] = _frame(tmp_path / "late.jpg", time="2026:11:22 11:15:00")
+    (finding,) = check_capture(load_rig(P1000), frames)
+    assert finding.code == "capture.time_spread"
+    assert "frames taken 75 min apart (left 10:00:00, right 10:04:10, back 11:15:00)" in (
+        finding.message
+    )
+    frames[2] = _frame(tmp_path / "bad.jpg", time="yesterday")
+    assert [f.code for f in check_capture(load_rig(P1000), frames)] == ["capture.bad_time"]
 
 
 def test_capture_size_model_and_missing_fields(tmp_path: Path) -> None:

@@ -8,6 +8,8 @@ from pathlib import Path
 EXAMPLE = """example:
   rigkit eval out/scene-1 out/scene-2 --depth-dir out/depth --csv out/eval.csv
   (the estimate for out/scene-1 is out/depth/scene-1.npy or out/depth/scene-1/depth.npy)
+  rigkit eval capture/example
+  (a processed synthetic session: its own results/depth.npy)
 """
 
 
@@ -21,7 +23,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("scenes", nargs="+", type=Path, help="scene folders written by rigkit synth")
-    p.add_argument("--depth-dir", type=Path, required=True, help="folder of depth estimates")
+    p.add_argument("--depth-dir", type=Path,
+                   help="folder of depth estimates (default: each session's results/)")
     p.add_argument("--csv", type=Path, help="also write the table as CSV here")
     p.set_defaults(func=run)
 

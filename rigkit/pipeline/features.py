@@ -36,7 +36,7 @@ class Matches:
 
 
 def _to_u8(img: np.ndarray) -> np.ndarray:
-    return np.clip(img, 0, 255).astype(np.uint8)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
 def _coarse_affine(left: np.ndarray, other: np.ndarray, what: str) -> tuple[np.ndarray, int]:

@@ -61,7 +61,7 @@ class SGBM:
         pad = n + abs(lo)
         l8, r8 = (
             cv2.copyMakeBorder(
-                np.clip(im, 0, 255).astype(np.uint8), 0, 0, pad, pad, cv2.BORDER_REPLICATE
+                np.clip(np.rint(im), 0, 255).astype(np.uint8), 0, 0, pad, pad, cv2.BORDER_REPLICATE
             )
             for im in (left, right)
         )

@@ -1,0 +1,324 @@
+"""Reading capture frames, camera RAW included, as grey images for the depth pipeline.
+
+A capture's three frames (left, right, back) are either camera RAW files (NEF, NRW,
+DNG, CR2, ARW, ... anything LibRaw reads, through ``rawpy``) or ordinary PNG, TIFF or
+JPEG files. :func:`load_linear_grey` reads either kind as (H, W) float32 grey in
+[0, 1]; :func:`to_pipeline` converts the three frames together to the pipeline's
+float32 [0, 255] scale.
+
+RAW frames are decoded to *linear* data: values proportional to the light on the
+sensor, 1.0 at the sensor's white level. Decoding keeps the sensor's pixel grid: the
+EXIF Orientation tag is *not* applied (see :func:`decode_raw`), and neither is it for
+PNG/TIFF/JPEG frames, so every frame has the size and layout the camera recorded and
+that ``rigkit.exif.ExifInfo.image_size_px`` reports.
+
+Decoding a large RAW file takes seconds, so :func:`load_linear_grey` can keep the
+decoded grey image as a 16-bit PNG in a cache folder, named after the file's SHA-256.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from rigkit.errors import InputError
+from rigkit.pipeline.images import to_grey
+
+# File name suffixes (lower case) of the camera RAW formats LibRaw decodes.
+RAW_SUFFIXES: frozenset[str] = frozenset(
+    {
+        ".3fr",  # Hasselblad
+        ".arw",  # Sony
+        ".cr2",  # Canon
+        ".cr3",  # Canon
+        ".crw",  # Canon (old)
+        ".dcr",  # Kodak
+        ".dng",  # Adobe DNG (Leica, Pentax, Ricoh, phones, converters)
+        ".erf",  # Epson
+        ".fff",  # Hasselblad / Imacon
+        ".iiq",  # Phase One
+        ".kdc",  # Kodak
+        ".mef",  # Mamiya
+        ".mos",  # Leaf
+        ".mrw",  # Minolta
+        ".nef",  # Nikon
+        ".nrw",  # Nikon (compact cameras)
+        ".orf",  # Olympus / OM System
+        ".pef",  # Pentax
+        ".raf",  # Fujifilm
+        ".raw",  # Panasonic, Leica
+        ".rw2",  # Panasonic
+        ".rwl",  # Leica
+        ".sr2",  # Sony (old)
+        ".srf",  # Sony (old)
+        ".srw",  # Samsung
+        ".x3f",  # Sigma
+    }
+)
+
+# Rec. 709 / sRGB luminance weights (R, G, B). They give the luminance Y of *linear*
+# sRGB-primary data, which is what decode_raw produces.
+LUMA_WEIGHTS: tuple[float, float, float] = (0.2126, 0.7152, 0.0722)
+
+# The cache file of a RAW frame is CACHE_DIR / (sha256[:16] + CACHE_SUFFIX). The name
+# stands for the decoding settings too: change it if decode_raw's options change.
+CACHE_SUFFIX = ".linear.png"
+
+# to_pipeline maps this percentile of the brightest frame to full scale (255).
+WHITE_PERCENTILE = 99.9
+# Pixels sampled (at most, on a regular grid) to estimate that percentile.
+_PERCENTILE_SAMPLES = 1_000_000
+
+_U16_MAX = 65535.0
+_SHA256_PREFIX = re.compile(r"[0-9a-fA-F]{16}")
+
+
+def is_raw(path: str | Path) -> bool:
+    """Whether ``path`` names a camera RAW file, judged by its suffix (any case)."""
+    return Path(path).suffix.lower() in RAW_SUFFIXES
+
+
+def decode_raw(path: str | Path) -> np.ndarray:
+    """Decode a camera RAW file to linear RGB: (H, W, 3) uint16, 65535 = white level.
+
+    LibRaw settings, and why:
+
+    * linear output: ``gamma=(1, 1)`` and ``no_auto_bright=True`` (no tone curve, no
+      histogram-driven brightening), 16 bits per sample. Black level is subtracted and
+      the sensor's white level maps to 65535 in the least amplified channel (usually
+      green); after white balance the others can clip a little earlier.
+    * ``use_camera_wb=True``: the white balance the camera recorded, so the three
+      cameras of a rig, set alike, get the same colour-to-grey mapping.
+    * ``output_color=sRGB``: linear data in sRGB primaries (the Rec. 709 weights of
+      :func:`linear_grey` then give luminance).
+    * ``highlight_mode=Clip``: saturated pixels stay white instead of being
+      reconstructed (reconstruction is not linear).
+    * ``demosaic_algorithm=AHD``: LibRaw's usual choice; it keeps edges sharp, which
+      the stereo matcher needs, at a moderate cost.
+    * ``user_flip=0``: the EXIF Orientation is *not* applied. The rig's calibration is
+      made on the sensor grid, and a camera's orientation sensor can flip its tag on a
+      steeply tilted telephoto, which would silently rotate one view of three. The
+      output has LibRaw's image size on the sensor grid (masked border pixels, such
+      as a DNG ActiveArea margin, are left out; nothing else is cropped), which for
+      most cameras is the image size EXIF records.
+
+    Raises InputError naming the file when it is missing, not a RAW file LibRaw
+    supports, truncated or corrupt.
+    """
+    import rawpy
+
+    path = Path(path)
+    _require_file(path)
+    try:
+        with rawpy.imread(str(path)) as raw:
+            rgb = raw.postprocess(
+                demosaic_algorithm=rawpy.DemosaicAlgorithm.AHD,
+                use_camera_wb=True,
+                output_color=rawpy.ColorSpace.sRGB,
+                output_bps=16,
+                gamma=(1, 1),
+                no_auto_bright=True,
+                highlight_mode=rawpy.HighlightMode.Clip,
+                user_flip=0,
+            )
+    except rawpy.LibRawError as exc:
+        raise InputError(f"{path}: {_libraw_reason(exc)}") from None
+    return np.asarray(rgb, dtype=np.uint16)
+
+
+def linear_grey(rgb16: np.ndarray) -> np.ndarray:
+    """Linear RGB (H, W, 3) uint16 -> linear luminance (H, W) float32 in [0, 1].
+
+    Y = 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709 weights, right for the linear
+    sRGB-primary output of :func:`decode_raw`), 1.0 = 65535 in every channel.
+    """
+    if rgb16.ndim != 3 or rgb16.shape[2] != 3 or rgb16.dtype != np.uint16:
+        raise ValueError(f"expected (H, W, 3) uint16 RGB, got {rgb16.shape} {rgb16.dtype}")
+    grey = np.zeros(rgb16.shape[:2], np.float32)
+    for channel, weight in enumerate(LUMA_WEIGHTS):
+        grey += rgb16[..., channel] * np.float32(weight / _U16_MAX)
+    return np.clip(grey, 0.0, 1.0, out=grey)
+
+
+def load_linear_grey(
+    path: str | Path, cache_dir: Path | None = None, sha256: str | None = None
+) -> np.ndarray:
+    """Read one frame as (H, W) float32 grey in [0, 1] of full scale.
+
+    RAW files (see :func:`is_raw`) are decoded with :func:`decode_raw` and reduced
+    with :func:`linear_grey`: the result is LINEAR in scene light, quantised to 16
+    bits. When both ``cache_dir`` and ``sha256`` (the file's SHA-256, hex) are given,
+    the result is kept as a 16-bit grey PNG ``cache_dir / (sha256[:16] + ".linear.png")``
+    and a later call with the same hash reads it instead of decoding again. The cache
+    file is written atomically (a temporary file in ``cache_dir``, then renamed); the
+    input file and its folder are never written to (unless that folder is
+    ``cache_dir``).
+
+    Other files (PNG, TIFF, JPEG; 8 or 16 bits; grey, colour or with alpha) are read
+    with OpenCV, converted to grey and divided by their type's maximum (255 or
+    65535). They are NOT linearised: such files are usually gamma-encoded, and the
+    pipeline only needs consistent brightness, not linear data. As for RAW files, the
+    EXIF Orientation is not applied.
+
+    Raises InputError naming the file when it is missing or cannot be decoded, or
+    naming the cache file when it cannot be written.
+    """
+    path = Path(path)
+    if not is_raw(path):
+        return _read_plain_grey(path)
+    cache = _cache_path(cache_dir, sha256)
+    if cache is not None:
+        cached = _read_cache(cache)
+        if cached is not None:
+            return _from_u16(cached)
+    grey16 = _to_u16(linear_grey(decode_raw(path)))
+    if cache is not None:
+        _write_atomically(cache, grey16)
+    return _from_u16(grey16)
+
+
+def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool) -> list[np.ndarray]:
+    """Frames (H, W) in [0, 1] -> the pipeline's (H, W) float32 in [0, 255], one scale.
+
+    All frames share one scale, so their relative brightness is kept: the rig's
+    cameras shoot the same scene with the same settings, and the stereo matcher
+    compares intensities between views, so a per-frame stretch (e.g. when one view
+    holds a bright sky or a glint) would make the views photometrically inconsistent.
+
+    ``linear=False`` (gamma-encoded PNG/TIFF/JPEG data): just times 255.
+
+    ``linear=True`` (RAW data): the 99.9th percentile of the brightest frame maps to
+    1, then the sRGB transfer curve is applied, then times 255, clipped to [0, 255].
+    The stereo matcher and the feature matcher cut the images to 8 bits. Linear RAW
+    data of a well exposed frame lies mostly in the bottom quarter of the range (the
+    camera keeps highlight headroom), which in 8 linear bits leaves shadows a handful
+    of levels and flattens their texture. Normalising uses the full 8-bit range, and
+    the sRGB curve spreads the levels evenly in perceived brightness, as a camera's
+    own JPEG does; its linear toe keeps sensor noise in the deepest shadows from being
+    amplified as a pure power law (e.g. a square root) would.
+    """
+    frames = [np.asarray(frame, dtype=np.float32) for frame in grey_frames]
+    if not frames:
+        raise ValueError("to_pipeline needs at least one frame")
+    if not linear:
+        return [np.clip(frame * np.float32(255.0), 0.0, 255.0) for frame in frames]
+    white = max(_white_point(frame) for frame in frames)
+    gain = np.float32(1.0 / white) if white > 0 else np.float32(1.0)
+    return [_srgb_encode(np.clip(frame * gain, 0.0, 1.0)) * np.float32(255.0) for frame in frames]
+
+
+# --- helpers -------------------------------------------------------------------------
+
+
+def _require_file(path: Path) -> None:
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if not path.is_file():
+        raise InputError(f"{path}: not a file")
+
+
+def _libraw_reason(exc: Exception) -> str:
+    """One line saying why LibRaw failed, for an InputError."""
+    import rawpy
+
+    if isinstance(exc, rawpy.LibRawFileUnsupportedError):
+        return "not a RAW file LibRaw can decode (unsupported format or camera)"
+    if isinstance(exc, rawpy.LibRawIOError):
+        return "cannot read the RAW data (file truncated or unreadable)"
+    if isinstance(exc, rawpy.LibRawDataError):
+        return "corrupt RAW data"
+    if isinstance(exc, rawpy.LibRawTooBigError):
+        return "RAW image too large for LibRaw"
+    if isinstance(exc, rawpy.LibRawUnsufficientMemoryError):
+        return "not enough memory to decode the RAW file"
+    detail = exc.args[0] if exc.args else exc
+    if isinstance(detail, bytes):
+        detail = detail.decode("ascii", errors="replace")
+    return f"LibRaw cannot decode the file ({type(exc).__name__}: {detail})"
+
+
+def _read_plain_grey(path: Path) -> np.ndarray:
+    """PNG/TIFF/JPEG -> (H, W) float32 in [0, 1] (not linearised, orientation ignored)."""
+    _require_file(path)
+    flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
+    img = cv2.imread(str(path), flags)
+    if img is None:
+        raise InputError(f"{path}: not a readable image (RAW, PNG, TIFF or JPEG expected)")
+    if img.dtype not in (np.uint8, np.uint16):
+        raise InputError(f"{path}: {img.dtype} samples (8- or 16-bit integer expected)")
+    # to_grey gives [0, 255] for both depths (16-bit divided by 257).
+    return np.clip(to_grey(img, str(path)) * np.float32(1.0 / 255.0), 0.0, 1.0)
+
+
+def _cache_path(cache_dir: Path | None, sha256: str | None) -> Path | None:
+    if cache_dir is None or sha256 is None:
+        return None
+    if not _SHA256_PREFIX.match(sha256):
+        raise ValueError(f"sha256 must be a hex digest, got {sha256!r}")
+    return Path(cache_dir) / f"{sha256[:16].lower()}{CACHE_SUFFIX}"
+
+
+def _read_cache(cache: Path) -> np.ndarray | None:
+    """The cached (H, W) uint16 grey image, or None when absent or not a valid cache."""
+    if not cache.is_file():
+        return None
+    img = cv2.imread(str(cache), cv2.IMREAD_UNCHANGED)
+    if img is None or img.ndim != 2 or img.dtype != np.uint16:
+        return None  # damaged or foreign: decode again and overwrite it
+    return img
+
+
+def _write_atomically(cache: Path, grey16: np.ndarray) -> None:
+    """Write (H, W) uint16 as a PNG at ``cache`` via a temporary file in its folder."""
+    ok, encoded = cv2.imencode(".png", grey16)
+    if not ok:
+        raise RuntimeError(f"OpenCV could not encode the {grey16.shape} cache image")
+    try:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(dir=cache.parent, prefix=f".{cache.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise InputError(f"{cache.parent}: cannot write the RAW cache ({exc})") from None
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(encoded.tobytes())
+        os.replace(tmp_name, cache)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp_name)
+        raise InputError(f"{cache}: cannot write the RAW cache ({exc})") from None
+
+
+def _to_u16(grey: np.ndarray) -> np.ndarray:
+    """(H, W) float in [0, 1] -> (H, W) uint16, 65535 = 1."""
+    return np.rint(np.clip(grey, 0.0, 1.0) * _U16_MAX).astype(np.uint16)
+
+
+def _from_u16(grey16: np.ndarray) -> np.ndarray:
+    """(H, W) uint16 -> (H, W) float32 in [0, 1]."""
+    return grey16.astype(np.float32) * np.float32(1.0 / _U16_MAX)
+
+
+def _white_point(frame: np.ndarray) -> float:
+    """WHITE_PERCENTILE of a frame's values, from at most ~_PERCENTILE_SAMPLES pixels."""
+    step = max(1, int(np.sqrt(frame.size / _PERCENTILE_SAMPLES)))
+    sample = frame[::step, ::step] if frame.ndim == 2 else frame.ravel()[:: step * step]
+    return float(np.percentile(sample, WHITE_PERCENTILE))
+
+
+def _srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """sRGB transfer curve (IEC 61966-2-1) on (H, W) float32 values in [0, 1]."""
+    linear = np.ascontiguousarray(linear, dtype=np.float32)
+    # cv2.pow is many times faster than np.power on large frames.
+    encoded: np.ndarray = np.asarray(cv2.pow(linear, 1 / 2.4), dtype=np.float32)
+    encoded *= np.float32(1.055)
+    encoded -= np.float32(0.055)
+    toe = linear <= np.float32(0.0031308)
+    encoded[toe] = linear[toe] * np.float32(12.92)
+    return encoded
