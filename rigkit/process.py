@@ -9,6 +9,7 @@ failing session stop the others.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
 import multiprocessing
@@ -18,8 +19,9 @@ import shutil
 import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -55,8 +57,9 @@ FATAL_MISMATCH_FIELDS = frozenset({"FocalLength", "FocalLengthIn35mmFilm", "Exif
 
 #: Memory a session needs, per pixel of one frame, at the peak of decoding and the
 #: pipeline (measured by benchmarks/bench_process.py), plus a fixed overhead.
-BYTES_PER_PIXEL = 110
+BYTES_PER_PIXEL = 130
 BASE_BYTES = 400 * 2**20
+LOCK_FILE = ".lock"
 
 StageReport = Callable[[str, float], None]
 
@@ -96,12 +99,33 @@ def process_session(
     Nothing under ``raw/`` is touched; ``results/`` is replaced only once the new
     results are completely written.
     """
-    from rigkit.frames import load_frames
-    from rigkit.pipeline import RigGeometry, estimate_depth
-
     t0 = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
     session = load_session(path)
+    with _exclusive(session.path):
+        return _process_locked(session, run_id, force, report, t0)
+
+
+@contextmanager
+def _exclusive(session_path: Path) -> Iterator[None]:
+    """Hold the session's lock, so two runs never write one session at once. The OS
+    drops the lock when its process ends, so a crash leaves nothing to clean up."""
+    with open(session_path / LOCK_FILE, "a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise InputError(
+                f"{session_path}: being processed by another rigkit run; try again later"
+            ) from None
+        yield
+
+
+def _process_locked(
+    session: Session, run_id: str, force: bool, report: StageReport, t0: float
+) -> Outcome:
+    from rigkit.frames import load_frames
+    from rigkit.pipeline import RigGeometry, estimate_depth
+
     problems = frame_problems(session)
     if problems:
         raise InputError(f"{session.path}: " + "; ".join(problems))

@@ -3,6 +3,7 @@ result on it, computed once per test session."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -67,10 +68,19 @@ def processed_session(synth_session: Path, tmp_path_factory: pytest.TempPathFact
     return out
 
 
-def copy_session(source: Path, folder: Path, name: str | None = None) -> Path:
-    """A private copy of a session fixture to change in one test."""
+def copy_session(
+    source: Path, folder: Path, name: str | None = None, edit: Callable | None = None
+) -> Path:
+    """A private copy of a session fixture to change in one test; ``edit(data)`` changes
+    its session.yaml (as parsed YAML) in place, bypassing rigkit's own checks."""
     import shutil
+
+    import yaml
 
     out = folder / (name or source.name)
     shutil.copytree(source, out)
+    if edit is not None:
+        data = yaml.safe_load((out / "session.yaml").read_text())
+        edit(data)
+        (out / "session.yaml").write_text(yaml.safe_dump(data))
     return out

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from conftest import copy_session
 
 from rigkit.cli import main
@@ -105,10 +104,8 @@ def test_batch_goes_on_after_a_failure(
     synth_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     good = copy_session(synth_session, tmp_path, "good")
-    missing = copy_session(synth_session, tmp_path, "missing-frame")
-    data = yaml.safe_load((missing / "session.yaml").read_text())
-    del data["frames"]["back"]
-    (missing / "session.yaml").write_text(yaml.safe_dump(data))
+    missing = copy_session(synth_session, tmp_path, "missing-frame",
+                           edit=lambda data: data["frames"].pop("back"))
     absent = tmp_path / "no-such-session"
     code = main(["process", str(missing), str(absent), str(good), "--jobs", "1", "--quiet"])
     assert code == 1
@@ -133,10 +130,7 @@ def test_batch_goes_on_after_a_failure(
 def test_bad_sessions_fail_with_one_line(
     synth_session: Path, tmp_path: Path, edit, message: str
 ) -> None:
-    copy = copy_session(synth_session, tmp_path)
-    data = yaml.safe_load((copy / "session.yaml").read_text())
-    edit(data)
-    (copy / "session.yaml").write_text(yaml.safe_dump(data))
+    copy = copy_session(synth_session, tmp_path, edit=edit)
     with pytest.raises(InputError, match=message):
         process_session(copy, "20260106T000000Z-0006")
 
@@ -174,3 +168,14 @@ def test_range_from_depth_on_a_plane(synth_session: Path) -> None:
     depth[:, :] = np.nan
     row = compare_target(session, target, depth, sigma, "run")
     assert row.status == "no_estimate" and math.isnan(row.error_pct)
+
+
+def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Path) -> None:
+    import fcntl
+
+    copy = copy_session(synth_session, tmp_path)
+    with open(copy / ".lock", "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        with pytest.raises(InputError, match="being processed by another rigkit run"):
+            process_session(copy, "20260107T000000Z-0007")
+    assert not (copy / "results").exists()

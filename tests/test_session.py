@@ -8,7 +8,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-import yaml
 from conftest import copy_session
 
 from rigkit.cli import main
@@ -21,6 +20,7 @@ from rigkit.session import (
     frame_problems,
     load_session,
 )
+from rigkit.synth import load_scene
 
 RIG = Path(__file__).resolve().parents[1] / "rigs" / "synthetic.yaml"
 
@@ -153,10 +153,7 @@ def test_problems_name_missing_and_altered_frames(synth_session: Path, tmp_path:
 def test_bad_session_yaml_names_file_and_key(
     synth_session: Path, tmp_path: Path, edit, message: str
 ) -> None:
-    copy = copy_session(synth_session, tmp_path)
-    data = yaml.safe_load((copy / "session.yaml").read_text())
-    edit(data)
-    (copy / "session.yaml").write_text(yaml.safe_dump(data))
+    copy = copy_session(synth_session, tmp_path, edit=edit)
     with pytest.raises(InputError, match=message) as info:
         load_session(copy)
     assert "session.yaml" in str(info.value)
@@ -191,3 +188,25 @@ def test_cli_target_from_a_simulated_rangefinder(tmp_path: Path) -> None:
     assert readings[0].source.startswith("trupulse:sim://")
     assert readings[0].slope_distance_m == pytest.approx(412.3, abs=1.0)
     assert readings[0].raw and readings[0].raw.startswith("$PLTIT")
+
+
+def test_synth_writes_a_session_with_true_laser_targets(tmp_path: Path) -> None:
+    out = tmp_path / "synth-9"
+    assert main(["synth", str(out), "--seed", "9", "--width", "320", "--height", "240",
+                 "--session", "--targets", "3", "--laser-noise", "0", "--quiet"]) == 0
+    session = load_session(out)
+    assert [t.name for t in session.targets] == ["T1", "T2", "T3"]
+    assert sorted(p.name for p in (out / "raw").iterdir()) == ["back.png", "left.png",
+                                                               "right.png"]
+    assert not (out / "left.png").exists()
+    truth = load_scene(out)
+    K = truth.cameras["left"].K
+    for target in session.targets:
+        (reading,) = target.readings
+        u, v = (int(c) for c in target.pixel)
+        ray = np.linalg.solve(K, [u, v, 1.0])  # z = 1 on the pixel's ray
+        expected = truth.depth("left")[v, u] * np.linalg.norm(ray)
+        assert reading.slope_distance_m == pytest.approx(expected, abs=1e-3)
+        assert reading.slope_distance_m == pytest.approx(float(target.note.split()[2]))
+        assert reading.source == "simulated"
+    assert session.rig().focal_px == pytest.approx(160 / np.tan(np.radians(3)))

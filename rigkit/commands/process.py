@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -58,14 +59,21 @@ def run(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _bar(fraction: float, width: int = 10) -> str:
+    filled = round(fraction * width)
+    return "[" + "#" * filled + "." * (width - filled) + "]"
+
+
 class Board:
     """Per-session stage progress and an ETA for the whole batch, on stderr.
 
-    On a terminal the current line is rewritten; otherwise a line per stage.
+    On a terminal one line is rewritten in place, with a bar per running session;
+    otherwise (a log file) one line per stage.
     """
 
     def __init__(self, paths: list[Path], quiet: bool) -> None:
         self.fraction = {path: 0.0 for path in paths}
+        self.stage = {path: "waiting" for path in paths}
         self.quiet = quiet
         self.tty = sys.stderr.isatty()
         self.t0 = time.perf_counter()
@@ -82,15 +90,19 @@ class Board:
 
     def update(self, path: Path, stage: str, fraction: float) -> None:
         self.fraction[path] = max(self.fraction.get(path, 0.0), fraction)
+        self.stage[path] = stage
         if self.quiet:
             return
         total = 100 * sum(self.fraction.values()) / max(len(self.fraction), 1)
-        line = (f"[{total:3.0f}% {self.eta()}] {path.name}: {stage} "
-                f"{100 * fraction:3.0f}%")
-        if self.tty:
-            print(f"\r{line}\033[K", end="", file=sys.stderr, flush=True)
-        else:
-            print(line, file=sys.stderr, flush=True)
+        head = f"[{total:3.0f}% {self.eta()}]"
+        if not self.tty:
+            print(f"{head} {path.name}: {stage} {100 * fraction:3.0f}%", file=sys.stderr,
+                  flush=True)
+            return
+        running = [p for p, f in self.fraction.items() if 0 < f < 1]
+        bars = " | ".join(f"{p.name} {self.stage[p]} {_bar(self.fraction[p])}" for p in running)
+        width = shutil.get_terminal_size().columns - 1
+        print(f"\r{head} {bars}"[: width + 1] + "\033[K", end="", file=sys.stderr, flush=True)
 
     def finished(self, outcome: Any) -> None:
         self.fraction[outcome.path] = 1.0

@@ -73,11 +73,31 @@ def write_synthetic_session(
 ) -> Session:
     """Render ``scene`` into ``out_dir`` as a session with ``n_targets`` laser targets."""
     write_scene(scene, out_dir, progress)
+    return session_from_rendered(
+        scene, out_dir, n_targets=n_targets, laser_sigma_m=laser_sigma_m, seed=seed
+    )
+
+
+def session_from_rendered(
+    scene: Scene,
+    out_dir: Path,
+    *,
+    n_targets: int = 5,
+    laser_sigma_m: float = 0.05,
+    seed: int = 0,
+    frame_suffix: str = ".png",
+) -> Session:
+    """Turn a scene folder ``rigkit synth`` wrote for ``scene`` into a session.
+
+    Its rendered images (``left.png`` ..., or another ``frame_suffix`` such as ``.dng``
+    for renderings stored as RAW) move into ``raw/`` (copied, then the originals
+    removed).
+    """
     atomic_write_text(out_dir / RIG_FILE, yaml.safe_dump(rig_for_scene(scene), sort_keys=False))
     session = create_session(out_dir, out_dir / RIG_FILE,
                              notes=f"synthetic scene, seed {scene.seed}")
     for view in VIEWS:
-        rendered = out_dir / f"{view}.png"
+        rendered = out_dir / f"{view}{frame_suffix}"
         session = add_frame(session, view, rendered)
         rendered.unlink()  # rendered by us a moment ago; the copy in raw/ is the frame
     truth = load_scene(out_dir)
