@@ -55,8 +55,14 @@ def run(args: argparse.Namespace) -> int:
     print(f"run {run_id}: {len(outcomes) - len(failed)} processed, {len(failed)} failed "
           f"({board.elapsed():.1f} s)")
     for outcome in failed:
-        print(f"  FAILED {outcome.path}: {outcome.message}")
+        print(f"  FAILED {_reason(outcome)}")
     return 1 if failed else 0
+
+
+def _reason(outcome: Any) -> str:
+    """The failure message, naming the session once."""
+    prefix = f"{outcome.path}: "
+    return outcome.message if outcome.message.startswith(prefix) else prefix + outcome.message
 
 
 def _bar(fraction: float, width: int = 10) -> str:
@@ -107,9 +113,11 @@ class Board:
     def finished(self, outcome: Any) -> None:
         self.fraction[outcome.path] = 1.0
         clear = "\r\033[K" if self.tty and not self.quiet else ""
-        state = "ok" if outcome.ok else "FAILED"
-        print(f"{clear}{state:>6} {outcome.path} ({outcome.seconds:.1f} s): {outcome.message}",
-              file=sys.stderr, flush=True)
+        if outcome.ok:
+            line = f"    ok {outcome.path} ({outcome.seconds:.1f} s): {outcome.message}"
+        else:
+            line = f"FAILED {_reason(outcome)}"
+        print(clear + line, file=sys.stderr, flush=True)
         for warning in outcome.warnings:
             print(f"       warning: {warning}", file=sys.stderr)
         for row in outcome.rows:

@@ -238,7 +238,7 @@ def _show_text(session: Any) -> str:
         exif = frame.exif
         shot = ", ".join(str(exif[k]) for k in ("model", "datetime_original") if k in exif)
         lines.append(f"  {position:<5}  {frame.file}  {frame.size_px[0]}x{frame.size_px[1]}  "
-                     f"sha256 {frame.sha256[:12]}  {shot}")
+                     f"sha256 {frame.sha256[:12]}  {shot}".rstrip())
     lines.append(f"targets ({len(session.targets)})")
     for target in session.targets:
         ranges = ", ".join(f"{r.slope_distance_m:.2f}" for r in target.readings) or "none"
