@@ -110,7 +110,11 @@ def process_session(
 def _exclusive(session_path: Path) -> Iterator[None]:
     """Hold the session's lock, so two runs never write one session at once. The OS
     drops the lock when its process ends, so a crash leaves nothing to clean up."""
-    with open(session_path / LOCK_FILE, "a") as handle:
+    try:
+        handle = open(session_path / LOCK_FILE, "a")  # closed by the with below
+    except OSError as exc:
+        raise InputError(f"{session_path}: cannot write to the session ({exc.strerror})") from None
+    with handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -313,7 +317,6 @@ def _replace_results(
     images: dict[str, np.ndarray],
 ) -> None:
     """Write everything to ``.results-<run>/``, then swap it in for ``results/``."""
-    from rigkit.comparisons import append_rows as write_rows
     from rigkit.preview import write_png
 
     recover_results(session_path)
@@ -324,7 +327,7 @@ def _replace_results(
         np.save(staging / "sigma.npy", sigma)
         (staging / "depth.json").write_text(json.dumps(meta, indent=2))
         if rows:
-            write_rows(staging / "comparisons.csv", rows)
+            append_rows(staging / "comparisons.csv", rows)
         for name, img in images.items():
             write_png(staging / name, img)
         _swap_in(session_path, staging, run_id)
