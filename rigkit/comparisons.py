@@ -82,20 +82,26 @@ def format_row(row: Comparison) -> dict[str, str]:
     return out
 
 
+def csv_text(rows: Sequence[Comparison], header: bool = True) -> str:
+    """The rows as CSV text with the log's columns (readable by :func:`read_rows`)."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+    if header:
+        writer.writeheader()
+    for row in rows:
+        writer.writerow(format_row(row))
+    return buffer.getvalue()
+
+
 def append_rows(path: Path, rows: Sequence[Comparison]) -> None:
     """Append rows to the log at ``path``, writing the header if the file is new.
 
     The rows go in with a single write on a file opened for appending, so a crash leaves
     either all of this run's rows or none of them (short of a full disk).
     """
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
-    if not path.exists() or path.stat().st_size == 0:
-        writer.writeheader()
-    for row in rows:
-        writer.writerow(format_row(row))
+    text = csv_text(rows, header=not path.exists() or path.stat().st_size == 0)
     with path.open("a", encoding="utf-8", newline="") as handle:
-        handle.write(buffer.getvalue())
+        handle.write(text)
         handle.flush()
         os.fsync(handle.fileno())
 

@@ -19,7 +19,7 @@ import shutil
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -37,8 +37,10 @@ from rigkit.comparisons import (
     STATUS_OK,
     Comparison,
     append_rows,
+    csv_text,
 )
 from rigkit.errors import InputError, RigkitError
+from rigkit.outputs import Content, write_file
 from rigkit.session import (
     POSITIONS,
     RESULTS_DIR,
@@ -160,8 +162,15 @@ def _process_locked(
         "warnings": list(warnings),
         **result.diagnostics(),
     }
-    images = _previews(left, result.depth, result.sigma, session.targets, rows)
-    _replace_results(session.path, run_id, result.depth, result.sigma, meta, rows, images)
+    files: dict[str, Content] = {
+        "depth.npy": result.depth,
+        "sigma.npy": result.sigma,
+        "depth.json": json.dumps(meta, indent=2),
+        **_previews(left, result.depth, result.sigma, session.targets, rows),
+    }
+    if rows:
+        files["comparisons.csv"] = csv_text(rows)
+    _replace_results(session.path, run_id, files)
     if rows:
         append_rows(session.path / LOG_NAME, rows)
     seconds = time.perf_counter() - t0
@@ -307,29 +316,14 @@ def _shrink(img: np.ndarray) -> np.ndarray:
     return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
 
 
-def _replace_results(
-    session_path: Path,
-    run_id: str,
-    depth: np.ndarray,
-    sigma: np.ndarray,
-    meta: dict[str, Any],
-    rows: Sequence[Comparison],
-    images: dict[str, np.ndarray],
-) -> None:
-    """Write everything to ``.results-<run>/``, then swap it in for ``results/``."""
-    from rigkit.preview import write_png
-
+def _replace_results(session_path: Path, run_id: str, files: Mapping[str, Content]) -> None:
+    """Write ``files`` to ``.results-<run>/``, then swap it in for ``results/``."""
     recover_results(session_path)
     staging = session_path / f".results-{run_id}"
     staging.mkdir()
     try:
-        np.save(staging / "depth.npy", depth)
-        np.save(staging / "sigma.npy", sigma)
-        (staging / "depth.json").write_text(json.dumps(meta, indent=2))
-        if rows:
-            append_rows(staging / "comparisons.csv", rows)
-        for name, img in images.items():
-            write_png(staging / name, img)
+        for name, content in files.items():
+            write_file(staging / name, content)
         _swap_in(session_path, staging, run_id)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)

@@ -13,7 +13,6 @@ use the usable (``ok``) rows only; the others are counted by status.
 
 from __future__ import annotations
 
-import csv
 import math
 import statistics
 from collections import Counter
@@ -25,11 +24,10 @@ import cv2
 import numpy as np
 
 from rigkit.comparisons import (
-    COLUMNS,
     LOG_NAME,
     STATUS_OK,
     Comparison,
-    format_row,
+    csv_text,
     latest_run,
     read_rows,
 )
@@ -327,11 +325,7 @@ def format_text(rows: Sequence[Comparison], summary: Summary) -> str:
 
 def write_csv(path: Path, rows: Sequence[Comparison]) -> None:
     """The rows as CSV with the log's columns (readable again by ``read_rows``)."""
-    with path.open("w", encoding="utf-8", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=COLUMNS, lineterminator="\n")
-        writer.writeheader()
-        for row in rows:
-            writer.writerow(format_row(row))
+    path.write_text(csv_text(rows), encoding="utf-8")
 
 
 # --------------------------------------------------------------------------- plotting

@@ -83,7 +83,7 @@ def test_a_failed_write_leaves_the_old_results(
     def broken(path: Path, img: np.ndarray) -> None:
         raise OSError("disk full")
 
-    monkeypatch.setattr("rigkit.preview.write_png", broken)
+    monkeypatch.setattr("rigkit.outputs.write_png", broken)
     with pytest.raises(OSError):
         process_session(copy, "20260103T000000Z-0003")
     assert (copy / "results" / "depth.json").read_text() == before

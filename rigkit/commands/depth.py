@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
 from pathlib import Path
 
 EXAMPLE = """example:
@@ -82,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from rigkit.errors import InputError
+    from rigkit.outputs import write_together
     from rigkit.pipeline import estimate_depth
     from rigkit.pipeline.images import load_grey
     from rigkit.preview import colorize, depth_range
@@ -96,10 +95,10 @@ def run(args: argparse.Namespace) -> int:
 
     out = args.out
     out.parent.mkdir(parents=True, exist_ok=True)
-    stem = out.with_suffix("")
-    files: dict[Path, object] = {
-        out: result.depth,
-        Path(f"{stem}.sigma.npy"): result.sigma,
+    stem = out.stem
+    files: dict[str, str | np.ndarray] = {
+        out.name: result.depth,
+        f"{stem}.sigma.npy": result.sigma,
     }
     meta = {
         "inputs": {k: str(getattr(args, k)) for k in ("left", "right", "back")},
@@ -110,13 +109,13 @@ def run(args: argparse.Namespace) -> int:
         },
         **result.diagnostics(),
     }
-    files[Path(f"{stem}.json")] = json.dumps(meta, indent=2)
+    files[f"{stem}.json"] = json.dumps(meta, indent=2)
     if args.preview:
         lo, hi = depth_range(result.depth)
-        files[Path(f"{stem}.png")] = colorize(result.depth, lo, hi, "depth z (m)")
+        files[f"{stem}.png"] = colorize(result.depth, lo, hi, "depth z (m)")
         rel = 100 * result.sigma / result.depth
-        files[Path(f"{stem}.sigma.png")] = colorize(rel, 0.0, 2.0, "1-sigma error (% of depth)")
-    _write_all(files)
+        files[f"{stem}.sigma.png"] = colorize(rel, 0.0, 2.0, "1-sigma error (% of depth)")
+    write_together(out.parent, files)
     a = result.ambiguity
     print(
         f"wrote {out} ({left.shape[1]}x{left.shape[0]}, "
@@ -126,26 +125,3 @@ def run(args: argparse.Namespace) -> int:
         f"{sum(result.timings_s.values()):.1f} s)"
     )
     return 0
-
-
-def _write_all(files: dict[Path, object]) -> None:
-    """Write every output to a temporary folder first, then move them into place, so a
-    failure never leaves a partial result that looks complete."""
-    import numpy as np
-
-    from rigkit.preview import write_png
-
-    first = next(iter(files))
-    with tempfile.TemporaryDirectory(dir=first.parent, prefix=".rigkit-") as tmp:
-        staged = []
-        for path, content in files.items():
-            t = Path(tmp) / path.name
-            if isinstance(content, str):
-                t.write_text(content)
-            elif path.suffix == ".png":
-                write_png(t, content)  # type: ignore[arg-type]
-            else:
-                np.save(t, content)  # type: ignore[arg-type]
-            staged.append((t, path))
-        for t, path in staged:
-            os.replace(t, path)

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 EXAMPLE = """example:
   rigkit report capture/field-1 capture/field-2 --out out/report
@@ -51,6 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rigkit.comparisons import csv_text
     from rigkit.errors import InputError
     from rigkit.report import (
         collect,
@@ -65,8 +68,8 @@ def run(args: argparse.Namespace) -> int:
     _check_out(args.out, args.sessions)
     rows = collect(args.sessions, all_runs=args.all_runs)
     text = format_text(rows, summarize(rows))
-    files: dict[str, object] = {
-        "comparisons.csv": rows,
+    files: dict[str, str | np.ndarray] = {
+        "comparisons.csv": csv_text(rows),
         "report.txt": text,
         "estimate_vs_laser.png": plot_estimate_vs_laser(rows),
         "error_vs_range.png": plot_error_vs_range(rows),
@@ -90,30 +93,17 @@ def _check_out(out: Path, sessions: list[Path]) -> None:
             raise InputError(f"--out {out}: is a session folder (its log would be replaced)")
 
 
-def _write_all(out: Path, files: dict[str, object]) -> None:
-    """Write every output into a temporary folder inside ``out`` first, then move them
-    into place, so a failure never leaves a mix of old and new files."""
+def _write_all(out: Path, files: dict[str, str | np.ndarray]) -> None:
+    """All report files at once (:func:`rigkit.outputs.write_together`); a folder that
+    cannot be created or written is a one-line error naming --out."""
     from rigkit.errors import InputError
-    from rigkit.preview import write_png
-    from rigkit.report import write_csv
+    from rigkit.outputs import write_together
 
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
     try:
-        with tempfile.TemporaryDirectory(dir=out, prefix=".rigkit-") as tmp:
-            staged = []
-            for name, content in files.items():
-                path = Path(tmp) / name
-                if isinstance(content, str):
-                    path.write_text(content, encoding="utf-8")
-                elif name.endswith(".png"):
-                    write_png(path, content)  # type: ignore[arg-type]
-                else:
-                    write_csv(path, content)  # type: ignore[arg-type]
-                staged.append((path, out / name))
-            for path, final in staged:
-                os.replace(path, final)
+        write_together(out, files)
     except OSError as exc:
         raise InputError(f"--out {out}: cannot write the report ({exc.strerror})") from None
