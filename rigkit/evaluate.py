@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from rigkit.errors import InputError
+from rigkit.session import RESULTS_DIR
 from rigkit.synth.io import SceneTruth, load_scene
 
 THRESHOLDS = (0.005, 0.01, 0.02, 0.03)
@@ -100,7 +101,7 @@ def find_estimate(depth_dir: Path | None, scene_dir: Path) -> Path | None:
     without ``depth_dir``, the scene's own ``results/depth.npy`` (a processed synthetic
     session)."""
     if depth_dir is None:
-        candidates = [scene_dir / "results" / "depth.npy"]
+        candidates = [scene_dir / RESULTS_DIR / "depth.npy"]
     else:
         candidates = [depth_dir / f"{scene_dir.name}.npy", depth_dir / scene_dir.name / "depth.npy"]
     return next((c for c in candidates if c.is_file()), None)

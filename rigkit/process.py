@@ -47,6 +47,7 @@ from rigkit.session import (
     Session,
     Target,
     frame_problems,
+    is_session,
     load_session,
     log_event,
     utc_now,
@@ -373,7 +374,7 @@ def safe_process(
 
 
 def _log_failure(path: Path, run_id: str, message: str) -> None:
-    if (path / "session.yaml").is_file():
+    if is_session(path):
         try:
             detail = message.strip().replace("\n", "\n    ")  # a trace stays indented
             log_event(path, "process", f"run {run_id}: FAILED: {detail}")

@@ -27,6 +27,7 @@ import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -125,6 +126,11 @@ class Session:
 
     def rig(self) -> RigProfile:
         """The rig profile from the copy of its values kept in the session."""
+        return self._rig
+
+    @cached_property
+    def _rig(self) -> RigProfile:
+        # Validated once per Session: processing asks for it per target.
         return rig_from_data(dict(self.rig_values), self.yaml_path, "rig.values")
 
     def frame_path(self, position: str) -> Path:

@@ -139,12 +139,8 @@ def _next_name(session: Any) -> str:
 
 
 def _typed_readings(ranges: list[float], inclination: float | None) -> list[Any]:
-    from rigkit.errors import InputError
     from rigkit.session import LaserReading, utc_now
 
-    for value in ranges:
-        if not value > 0:
-            raise InputError(f"--range-m {value}: expected a positive distance in metres")
     return [LaserReading(r, utc_now(), "manual", inclination) for r in ranges]
 
 
@@ -197,18 +193,14 @@ def run_show(args: argparse.Namespace) -> int:
 
 
 def _show_data(session: Any) -> dict[str, Any]:
+    from dataclasses import asdict
+
     from rigkit.session import frame_problems, session_to_data
 
     data = session_to_data(session)
     data["problems"] = frame_problems(session)
-    data["last_run"] = [_row_dict(row) for row in _last_rows(session)]
+    data["last_run"] = [asdict(row) for row in _last_rows(session)]
     return data
-
-
-def _row_dict(row: Any) -> dict[str, Any]:
-    from dataclasses import asdict
-
-    return asdict(row)
 
 
 def _last_rows(session: Any) -> list[Any]:
