@@ -22,6 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import yaml
+from eval_synthetic import seed_list  # this folder is on sys.path when run as a script
 
 from rigkit.comparisons import LOG_NAME, latest_run, read_rows
 from rigkit.process import BASE_BYTES, BYTES_PER_PIXEL, auto_jobs, run_batch
@@ -29,11 +30,6 @@ from rigkit.report import format_text, summarize
 from rigkit.session import is_session, load_session
 from rigkit.synth import SynthParams, generate_scene, write_scene
 from rigkit.synth.session import session_from_rendered
-
-
-def seed_list(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
 
 
 def prepare(seed: int, params: SynthParams, work: Path, targets: int, raw: bool) -> Path:

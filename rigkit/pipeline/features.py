@@ -35,6 +35,21 @@ class Matches:
     coarse_inliers: int
 
 
+def _track(a: np.ndarray, b: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pyramidal Lucas-Kanade from image ``a`` to ``b``: (new points, status)."""
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.005)
+    moved, status, _ = cv2.calcOpticalFlowPyrLK(
+        a,
+        b,
+        points,
+        None,
+        winSize=(21, 21),
+        maxLevel=4,
+        criteria=crit,  # type: ignore[call-overload]
+    )
+    return moved, status
+
+
 def _to_u8(img: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
@@ -96,25 +111,8 @@ def match_views(
     )
     l8, w8 = _to_u8(left), _to_u8(warped)
     p0 = _corners(left, n_points).astype(np.float32)
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.005)
-    p1, st1, _ = cv2.calcOpticalFlowPyrLK(
-        l8,
-        w8,
-        p0,
-        None,
-        winSize=(21, 21),
-        maxLevel=4,
-        criteria=crit,  # type: ignore[call-overload]
-    )
-    p0b, st2, _ = cv2.calcOpticalFlowPyrLK(
-        w8,
-        l8,
-        p1,
-        None,
-        winSize=(21, 21),
-        maxLevel=4,
-        criteria=crit,  # type: ignore[call-overload]
-    )
+    p1, st1 = _track(l8, w8, p0)
+    p0b, st2 = _track(w8, l8, p1)  # and back, to check each track
     h, w = left.shape
     fb = np.linalg.norm(p0b - p0, axis=1)
     ok = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (fb < 0.1)
