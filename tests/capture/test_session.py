@@ -8,7 +8,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from conftest import copy_session
 
 from rigkit.cli import main
 from rigkit.errors import InputError
@@ -21,8 +20,9 @@ from rigkit.session import (
     load_session,
 )
 from rigkit.synth import load_scene
+from tests.conftest import copy_session
 
-RIG = Path(__file__).resolve().parents[1] / "rigs" / "synthetic.yaml"
+RIG = Path(__file__).resolve().parents[2] / "rigs" / "synthetic.yaml"
 
 
 def sha(path: Path) -> str:

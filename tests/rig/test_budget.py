@@ -27,7 +27,7 @@ from rigkit.rigcheck import (
     triangulation_angle_deg,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
 VEHICLE = ROOT / "rigs" / "vehicle-2m.yaml"
 SYNTHETIC = ROOT / "rigs" / "synthetic.yaml"

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import copy_session
 
 from rigkit.cli import main
 from rigkit.comparisons import LOG_NAME, latest_run, read_rows
@@ -22,6 +21,7 @@ from rigkit.process import (
     run_batch,
 )
 from rigkit.session import Target, load_session
+from tests.conftest import copy_session
 
 
 def true_ranges(session_dir: Path) -> dict[str, float]:

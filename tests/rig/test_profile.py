@@ -21,7 +21,7 @@ from rigkit.rig import (
     load_rig,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = sorted((ROOT / "rigs").glob("*.yaml"))
 BAD = sorted((ROOT / "tests" / "data" / "bad_rigs").glob("*.yaml"))
 

@@ -10,8 +10,6 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from conftest import SMALL
-from dngutil import write_dng
 
 from rigkit.comparisons import LOG_NAME, read_rows
 from rigkit.errors import InputError
@@ -19,6 +17,8 @@ from rigkit.process import process_session
 from rigkit.session import add_frame, add_target, create_session, load_session
 from rigkit.synth import generate_scene
 from rigkit.synth.session import rig_for_scene
+from tests.conftest import SMALL
+from tests.dngutil import write_dng
 
 WHITE = 4095
 EXIF = {

@@ -8,12 +8,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from dngutil import write_dng
 
 from rigkit import rawio
 from rigkit.errors import InputError
 from rigkit.exif import read_exif
 from rigkit.rawio import decode_raw, is_raw, linear_grey, load_linear_grey, to_pipeline
+from tests.dngutil import write_dng
 
 H, W = 48, 64  # Bayer mosaic size (rows, columns)
 WHITE = 4095  # 12-bit sensor

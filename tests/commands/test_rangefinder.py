@@ -14,7 +14,7 @@ import yaml
 
 from rigkit.cli import main
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 TRUPULSE = "sim://trupulse?interval=0.02"
 
 
