@@ -2,12 +2,8 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
-
-from rigkit.errors import InputError
 
 PREVIEW_WIDTH = 1600
 
@@ -58,8 +54,3 @@ def depth_range(depth: np.ndarray) -> tuple[float, float]:
         return 0.0, 1.0
     lo, hi = np.percentile(finite, [1, 99])
     return float(lo), float(hi)
-
-
-def write_png(path: Path, img: np.ndarray) -> None:
-    if not cv2.imwrite(str(path), img):
-        raise InputError(f"cannot write {path}")

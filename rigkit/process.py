@@ -15,11 +15,10 @@ import math
 import multiprocessing
 import os
 import secrets
-import shutil
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -39,8 +38,8 @@ from rigkit.comparisons import (
     append_rows,
     csv_text,
 )
+from rigkit.core.files import Content, replace_folder
 from rigkit.errors import InputError, RigkitError
-from rigkit.outputs import Content, write_file
 from rigkit.session import (
     POSITIONS,
     RESULTS_DIR,
@@ -171,7 +170,7 @@ def _process_locked(
     }
     if rows:
         files["comparisons.csv"] = csv_text(rows)
-    _replace_results(session.path, run_id, files)
+    replace_folder(session.path, RESULTS_DIR, files, run_id)
     if rows:
         append_rows(session.path / LOG_NAME, rows)
     seconds = time.perf_counter() - t0
@@ -315,40 +314,6 @@ def _shrink(img: np.ndarray) -> np.ndarray:
         return img
     size = (round(img.shape[1] * scale), round(img.shape[0] * scale))
     return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
-
-
-def _replace_results(session_path: Path, run_id: str, files: Mapping[str, Content]) -> None:
-    """Write ``files`` to ``.results-<run>/``, then swap it in for ``results/``."""
-    recover_results(session_path)
-    staging = session_path / f".results-{run_id}"
-    staging.mkdir()
-    try:
-        for name, content in files.items():
-            write_file(staging / name, content)
-        _swap_in(session_path, staging, run_id)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-
-
-def _swap_in(session_path: Path, staging: Path, run_id: str) -> None:
-    current = session_path / RESULTS_DIR
-    retired = session_path / f".results-old-{run_id}"
-    if current.exists():
-        os.rename(current, retired)
-    os.rename(staging, current)
-    shutil.rmtree(retired, ignore_errors=True)
-
-
-def recover_results(session_path: Path) -> None:
-    """Undo an interrupted swap: restore the newest retired results if ``results/`` is
-    gone, and delete staging folders a crash left behind."""
-    current = session_path / RESULTS_DIR
-    retired = sorted(session_path.glob(".results-old-*"))
-    if not current.exists() and retired:
-        os.rename(retired.pop(), current)
-    for leftover in [*retired, *session_path.glob(".results-2*")]:
-        shutil.rmtree(leftover, ignore_errors=True)
 
 
 # -- many sessions ---------------------------------------------------------------------------

@@ -18,16 +18,14 @@ decoded grey image as a 16-bit PNG in a cache folder, named after the file's SHA
 
 from __future__ import annotations
 
-import contextlib
-import os
 import re
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from rigkit.core.files import write_png
 from rigkit.errors import InputError
 from rigkit.pipeline.images import to_grey
 
@@ -180,7 +178,7 @@ def load_linear_grey(
             return _from_u16(cached)
     grey16 = _to_u16(linear_grey(decode_raw(path)))
     if cache is not None:
-        _write_atomically(cache, grey16)
+        _write_cache(cache, grey16)
     return _from_u16(grey16)
 
 
@@ -275,23 +273,12 @@ def _read_cache(cache: Path) -> np.ndarray | None:
     return img
 
 
-def _write_atomically(cache: Path, grey16: np.ndarray) -> None:
-    """Write (H, W) uint16 as a PNG at ``cache`` via a temporary file in its folder."""
-    ok, encoded = cv2.imencode(".png", grey16)
-    if not ok:
-        raise RuntimeError(f"OpenCV could not encode the {grey16.shape} cache image")
+def _write_cache(cache: Path, grey16: np.ndarray) -> None:
+    """Write (H, W) uint16 as a PNG at ``cache`` atomically (:mod:`rigkit.core.files`)."""
     try:
         cache.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(dir=cache.parent, prefix=f".{cache.name}.", suffix=".tmp")
+        write_png(cache, grey16)
     except OSError as exc:
-        raise InputError(f"{cache.parent}: cannot write the RAW cache ({exc})") from None
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(encoded.tobytes())
-        os.replace(tmp_name, cache)
-    except OSError as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp_name)
         raise InputError(f"{cache}: cannot write the RAW cache ({exc})") from None
 
 

@@ -4,7 +4,7 @@
 each session's newest run), :func:`summarize` computes error statistics overall and per
 laser-range bucket, :func:`format_text` and :func:`write_csv` give the table, and
 :func:`plot_estimate_vs_laser` and :func:`plot_error_vs_range` draw the two plots as BGR
-images with OpenCV (write them with :func:`rigkit.preview.write_png`).
+images with OpenCV (write them with :func:`rigkit.core.files.write_png`).
 
 Sign convention (as in :mod:`rigkit.comparisons`): ``error = estimate - laser``; a
 positive error puts the target too far. Percentages are of the laser range. Statistics

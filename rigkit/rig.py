@@ -25,10 +25,9 @@ along the viewing direction.
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
-from collections.abc import Callable, Hashable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -36,6 +35,7 @@ from typing import Any, TypeVar
 
 import yaml
 
+from rigkit.core.yamlfile import KeyPath, read_strict_yaml
 from rigkit.errors import InputError
 
 FULL_FRAME_DIAGONAL_MM = math.hypot(36.0, 24.0)
@@ -239,7 +239,7 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
     sits under in that file (``"rig.values"`` in a session.yaml), so errors name it.
     """
     path = source
-    top = _Key(path, key_prefix)
+    top = KeyPath(path, key_prefix)
     keys = top.mapping(
         data,
         required=("version", "name", "baselines"),
@@ -265,154 +265,19 @@ def _read_yaml(path: Path) -> Any:
     return read_strict_yaml(path, "rig profile")
 
 
-def read_strict_yaml(path: Path, what: str) -> Any:
-    """Parse a YAML file, rejecting duplicate keys; InputError names the file (``what`` it
-    should be) and the line of a syntax error."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such {what}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the {what} ({exc})") from None
-    try:
-        data = yaml.load(text, Loader=_StrictLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-        problem = exc.problem or exc.context or "syntax error"
-        raise InputError(f"{path}: not valid YAML: {problem}{where}") from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"{path}: not valid YAML: {exc}") from None
-    if data is None:
-        raise InputError(f"{path}: the {what} is empty")
-    return data
-
-
-class _StrictLoader(yaml.SafeLoader):
-    """A SafeLoader that rejects a key written twice in one mapping (YAML keeps the last)."""
-
-
-def _construct_unique_mapping(loader: _StrictLoader, node: yaml.MappingNode) -> dict[Any, Any]:
-    seen: set[Any] = set()
-    for key_node, _ in node.value:
-        if key_node.tag == "tag:yaml.org,2002:merge":
-            continue
-        key = loader.construct_object(key_node)
-        if not isinstance(key, Hashable):
-            break  # construct_mapping reports the unhashable key
-        if key in seen:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"key {key!r} appears twice", key_node.start_mark
-            )
-        seen.add(key)
-    return loader.construct_mapping(node)
-
-
-_StrictLoader.add_constructor(
-    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping
-)
-
-
-@dataclass(frozen=True)
-class _Key:
-    """Where a value sits in a profile (file and dotted key), for error messages."""
-
-    file: Path
-    key: str
-
-    def child(self, name: str) -> _Key:
-        return _Key(self.file, f"{self.key}.{name}" if self.key else name)
-
-    def error(self, problem: str, value: Any = ...) -> InputError:
-        key = self.key or "(top level)"
-        got = "" if value is ... else f", got {_show(value)}"
-        return InputError(f"{self.file}: {key}: {problem}{got}")
-
-    def mapping(
-        self, value: Any, required: tuple[str, ...], optional: tuple[str, ...] = ()
-    ) -> dict[str, Any]:
-        """A mapping with exactly the ``required`` keys and any of the ``optional`` ones."""
-        if not isinstance(value, dict):
-            raise self.error("must be a mapping of keys to values", value)
-        allowed = required + optional
-        for key in value:
-            if key not in allowed:
-                raise self.child(str(key)).error(_unknown_key_problem(str(key), allowed))
-        for key in required:
-            if key not in value:
-                raise self.child(key).error("missing")
-        return value
-
-    def number(self, value: Any, unit: str) -> float:
-        """A finite real number (not a boolean, not a string with a unit in it)."""
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            hint = " (the unit is in the key name; write the number only)"
-            raise self.error(f"must be a number in {unit}{hint}", value)
-        if not math.isfinite(value):
-            raise self.error(f"must be a finite number in {unit}", value)
-        return float(value)
-
-    def bounded(
-        self, value: Any, unit: str, high: float, *, low: float = 0.0, hint: str = ""
-    ) -> float:
-        """A number in (low, high] (low < value <= high)."""
-        number = self.number(value, unit)
-        if not low < number <= high:
-            why = f" ({hint})" if hint and number > high else ""
-            raise self.error(f"must be > {low:g} and <= {high:g} {unit}{why}", value)
-        return number
-
-    def integer(self, value: Any, unit: str, high: int) -> int:
-        """A whole number in [1, high]."""
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(f"must be a whole number of {unit}", value)
-        if not 1 <= value <= high:
-            raise self.error(f"must be between 1 and {high} {unit}", value)
-        return value
-
-    def pair(self, value: Any, names: str) -> tuple[Any, Any]:
-        """A two-element list such as ``[width, height]``."""
-        if not isinstance(value, list) or len(value) != 2:
-            raise self.error(f"must be a list of two numbers [{names}]", value)
-        return value[0], value[1]
-
-    def line(self, value: Any) -> str:
-        """A non-empty single-line string."""
-        if not isinstance(value, str) or not value.strip() or "\n" in value.strip():
-            raise self.error("must be a non-empty single-line string", value)
-        return value.strip()
-
-    def text(self, value: Any) -> str:
-        """Free text (may span lines)."""
-        if not isinstance(value, str):
-            raise self.error("must be text", value)
-        return value.strip()
-
-
-def _show(value: Any) -> str:
-    shown = repr(value)
-    return shown if len(shown) <= 60 else shown[:57] + "..."
-
-
-def _unknown_key_problem(key: str, allowed: tuple[str, ...]) -> str:
-    close = difflib.get_close_matches(key, allowed, n=1)
-    suggestion = f"did you mean {close[0]!r}? " if close else ""
-    return f"unknown key; {suggestion}allowed here: {', '.join(allowed)}"
-
-
 def _optional(
-    keys: dict[str, Any], name: str, parent: _Key, read: Callable[[Any, _Key], _T]
+    keys: dict[str, Any], name: str, parent: KeyPath, read: Callable[[Any, KeyPath], _T]
 ) -> _T | None:
     """``read(value, key)`` when ``name`` is present, else None."""
     return read(keys[name], parent.child(name)) if name in keys else None
 
 
-def _check_version(value: Any, key: _Key) -> None:
+def _check_version(value: Any, key: KeyPath) -> None:
     if isinstance(value, bool) or value != PROFILE_VERSION:
         raise key.error(f"unsupported profile version (this rigkit reads {PROFILE_VERSION})", value)
 
 
-def _cameras(keys: dict[str, Any], top: _Key) -> Mapping[str, CameraSpec]:
+def _cameras(keys: dict[str, Any], top: KeyPath) -> Mapping[str, CameraSpec]:
     if ("camera" in keys) == ("cameras" in keys):
         raise top.error(
             "give either 'camera' (one spec shared by left, right and back) "
@@ -426,7 +291,7 @@ def _cameras(keys: dict[str, Any], top: _Key) -> Mapping[str, CameraSpec]:
     return MappingProxyType({role: _camera(specs[role], each.child(role)) for role in CAMERA_ROLES})
 
 
-def _camera(value: Any, key: _Key) -> CameraSpec:
+def _camera(value: Any, key: KeyPath) -> CameraSpec:
     keys = key.mapping(
         value,
         required=("model", "resolution", "focal_length"),
@@ -459,7 +324,7 @@ def _camera(value: Any, key: _Key) -> CameraSpec:
     )
 
 
-def _resolution(value: Any, key: _Key) -> tuple[int, int]:
+def _resolution(value: Any, key: KeyPath) -> tuple[int, int]:
     width, height = key.pair(value, "width, height")
     return (
         key.integer(width, "pixels", _MAX_RESOLUTION_PX),
@@ -467,7 +332,7 @@ def _resolution(value: Any, key: _Key) -> tuple[int, int]:
     )
 
 
-def _sensor(value: Any, key: _Key) -> tuple[float, float]:
+def _sensor(value: Any, key: KeyPath) -> tuple[float, float]:
     width, height = key.pair(value, "width, height")
     hint = "sensor_mm is in millimetres; is this in micrometres or pixels?"
     return (
@@ -476,7 +341,7 @@ def _sensor(value: Any, key: _Key) -> tuple[float, float]:
     )
 
 
-def _check_aspect(sensor: tuple[float, float], resolution: tuple[int, int], key: _Key) -> None:
+def _check_aspect(sensor: tuple[float, float], resolution: tuple[int, int], key: KeyPath) -> None:
     sensor_aspect = sensor[0] / sensor[1]
     image_aspect = resolution[0] / resolution[1]
     if abs(sensor_aspect / image_aspect - 1.0) > ASPECT_AGREEMENT:
@@ -489,7 +354,7 @@ def _check_aspect(sensor: tuple[float, float], resolution: tuple[int, int], key:
         )
 
 
-def _focal_length(value: Any, key: _Key) -> tuple[str, float, float]:
+def _focal_length(value: Any, key: KeyPath) -> tuple[str, float, float]:
     """(form, value as given, tolerance fraction) read from a ``focal_length`` mapping."""
     keys = key.mapping(value, required=("tolerance_fraction",), optional=FOCAL_FORMS)
     forms = [form for form in FOCAL_FORMS if form in keys]
@@ -506,7 +371,7 @@ def _focal_length(value: Any, key: _Key) -> tuple[str, float, float]:
     return form, given, _tolerance_fraction(keys["tolerance_fraction"], key)
 
 
-def _tolerance_fraction(value: Any, parent: _Key) -> float:
+def _tolerance_fraction(value: Any, parent: KeyPath) -> float:
     key = parent.child("tolerance_fraction")
     number = key.number(value, "fraction")
     if not 0.0 <= number < 0.5:
@@ -514,19 +379,19 @@ def _tolerance_fraction(value: Any, parent: _Key) -> float:
     return number
 
 
-def _principal_point(value: Any, key: _Key) -> tuple[float, float]:
+def _principal_point(value: Any, key: KeyPath) -> tuple[float, float]:
     cx, cy = key.pair(value, "cx, cy")
     return key.number(cx, "pixels"), key.number(cy, "pixels")
 
 
 def _check_principal_point(
-    point: tuple[float, float], resolution: tuple[int, int], key: _Key
+    point: tuple[float, float], resolution: tuple[int, int], key: KeyPath
 ) -> None:
     if not (0 <= point[0] <= resolution[0] and 0 <= point[1] <= resolution[1]):
         raise key.error(f"must lie inside the {resolution[0]}x{resolution[1]} image", list(point))
 
 
-def _baseline(value: Any, key: _Key) -> Baseline:
+def _baseline(value: Any, key: KeyPath) -> Baseline:
     keys = key.mapping(value, required=("value_m", "tolerance_m"))
     hint = "baselines are in metres; is this in centimetres or millimetres?"
     length = key.child("value_m").bounded(keys["value_m"], "m", _MAX_BASELINE_M, hint=hint)
@@ -539,14 +404,14 @@ def _baseline(value: Any, key: _Key) -> Baseline:
     return Baseline(value_m=length, tolerance_m=tolerance)
 
 
-def _signed_offset(value: Any, key: _Key) -> float:
+def _signed_offset(value: Any, key: KeyPath) -> float:
     number = key.number(value, "m")
     if abs(number) > _MAX_OFFSET_M:
         raise key.error(f"must be within +-{_MAX_OFFSET_M:g} m (is this in cm or mm?)", value)
     return number
 
 
-def _back_offset(value: Any, key: _Key) -> tuple[float, float]:
+def _back_offset(value: Any, key: KeyPath) -> tuple[float, float]:
     keys = key.mapping(value, required=("right_m", "up_m"))
     return (
         _signed_offset(keys["right_m"], key.child("right_m")),
@@ -554,7 +419,7 @@ def _back_offset(value: Any, key: _Key) -> tuple[float, float]:
     )
 
 
-def _rangefinder(value: Any, key: _Key) -> RangefinderSpec:
+def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
     keys = key.mapping(value, required=("protocol",), optional=("port", "baud", "offset"))
     protocol = keys["protocol"]
     if not isinstance(protocol, str) or not _PROTOCOL_PATTERN.fullmatch(protocol):
@@ -574,7 +439,7 @@ def _rangefinder(value: Any, key: _Key) -> RangefinderSpec:
     )
 
 
-def _rangefinder_offset(value: Any, key: _Key) -> tuple[float, float, float]:
+def _rangefinder_offset(value: Any, key: KeyPath) -> tuple[float, float, float]:
     keys = key.mapping(value, required=("right_m", "up_m", "forward_m"))
     return (
         _signed_offset(keys["right_m"], key.child("right_m")),
@@ -583,7 +448,7 @@ def _rangefinder_offset(value: Any, key: _Key) -> tuple[float, float, float]:
     )
 
 
-def _nominal_range(value: Any, key: _Key) -> float:
+def _nominal_range(value: Any, key: KeyPath) -> float:
     return key.bounded(value, "m", _MAX_RANGE_M)
 
 

@@ -22,7 +22,6 @@ import hashlib
 import math
 import os
 import re
-import secrets
 import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -33,9 +32,11 @@ from typing import Any
 
 import yaml
 
+from rigkit.core.files import temp_file, write_text
+from rigkit.core.yamlfile import KeyPath, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.exif import ExifInfo, read_exif
-from rigkit.rig import RigProfile, load_rig, read_strict_yaml, rig_from_data, rig_to_dict
+from rigkit.rig import RigProfile, load_rig, rig_from_data, rig_to_dict
 
 SESSION_FILE = "session.yaml"
 FORMAT = "rigkit-session/1"
@@ -173,32 +174,7 @@ def save_session(session: Session) -> None:
     text = "# rigkit capture session; edit with `rigkit session`\n" + yaml.safe_dump(
         session_to_data(session), sort_keys=False, allow_unicode=True, default_flow_style=None
     )
-    atomic_write_text(session.yaml_path, text)
-
-
-def temp_file(folder: Path, prefix: str) -> tuple[int, Path]:
-    """A new, empty, hidden file in ``folder`` opened for writing, with the usual
-    permissions (0666 less the umask; ``tempfile.mkstemp`` would make it private)."""
-    while True:
-        path = folder / f".{prefix}.{secrets.token_hex(4)}.tmp"
-        try:
-            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
-        except FileExistsError:
-            continue
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Replace ``path`` with ``text`` so readers see the old or the new file, never half."""
-    fd, tmp = temp_file(path.parent, path.name)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    write_text(session.yaml_path, text)
 
 
 def log_event(session_path: Path, action: str, detail: str) -> None:
@@ -208,150 +184,115 @@ def log_event(session_path: Path, action: str, detail: str) -> None:
         handle.write(line)
 
 
-class _Reader:
-    """Typed access to session.yaml values with errors naming the file and dotted key."""
-
-    def __init__(self, file: Path) -> None:
-        self.file = file
-
-    def fail(self, key: str, problem: str) -> InputError:
-        return InputError(f"{self.file}: {key}: {problem}")
-
-    def mapping(
-        self, value: Any, key: str, required: Sequence[str], optional: Sequence[str] = ()
-    ) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            raise self.fail(key or "top level", "expected a mapping")
-        unknown = [k for k in value if k not in (*required, *optional)]
-        if unknown:
-            allowed = ", ".join((*required, *optional))
-            raise self.fail(_join(key, str(unknown[0])), f"unknown key (allowed: {allowed})")
-        missing = [k for k in required if k not in value]
-        if missing:
-            raise self.fail(_join(key, missing[0]), "missing")
-        return value
-
-    def text(self, value: Any, key: str) -> str:
-        if value is None:
-            return ""
-        if not isinstance(value, str):
-            raise self.fail(key, f"expected text, got {value!r}")
-        return value
-
-    def number(self, value: Any, key: str, positive: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(key, f"expected a number, got {value!r}")
-        if not math.isfinite(value) or (positive and value <= 0):
-            raise self.fail(key, f"expected a {'positive ' if positive else ''}number, "
-                            f"got {value!r}")
-        return float(value)
-
-    def pair(self, value: Any, key: str) -> tuple[float, float]:
-        if not isinstance(value, list) or len(value) != 2:
-            raise self.fail(key, f"expected [a, b], got {value!r}")
-        return self.number(value[0], key), self.number(value[1], key)
-
-
-def _join(key: str, child: str) -> str:
-    return f"{key}.{child}" if key else child
-
-
 def _session_from_data(data: Any, path: Path) -> Session:
-    r = _Reader(path / SESSION_FILE)
-    top = r.mapping(
+    top_key = KeyPath(path / SESSION_FILE)
+    top = top_key.mapping(
         data,
-        "",
         required=("format", "name", "created_utc", "rig", "frames", "targets"),
         optional=("operator", "notes"),
     )
     if top["format"] != FORMAT:
-        raise r.fail("format", f"expected {FORMAT}, got {top['format']!r}")
-    rig = r.mapping(top["rig"], "rig", required=("reference", "sha256", "values"))
-    frames_data = top["frames"] or {}
-    r.mapping(frames_data, "frames", required=(), optional=POSITIONS)
-    frames = {pos: _frame(r, value, f"frames.{pos}", pos) for pos, value in frames_data.items()}
-    targets_data = top["targets"] or []
-    if not isinstance(targets_data, list):
-        raise r.fail("targets", "expected a list")
-    targets = tuple(_target(r, value, f"targets[{i}]") for i, value in enumerate(targets_data))
+        raise top_key.child("format").error(f"must be {FORMAT}", top["format"])
+    rig_key = top_key.child("rig")
+    rig = rig_key.mapping(top["rig"], required=("reference", "sha256", "values"))
+    frames_key = top_key.child("frames")
+    frames_data = frames_key.mapping(top["frames"] or {}, required=(), optional=POSITIONS)
+    frames = {
+        pos: _frame(value, frames_key.child(pos), pos) for pos, value in frames_data.items()
+    }
+    targets_key = top_key.child("targets")
+    targets = tuple(
+        _target(value, targets_key.item(i))
+        for i, value in enumerate(targets_key.sequence(top["targets"]))
+    )
     names = [t.name for t in targets]
     if len(set(names)) != len(names):
-        raise r.fail("targets", "two targets share a name")
+        raise targets_key.error("two targets share a name")
     session = Session(
         path=path,
-        name=r.text(top["name"], "name"),
-        created_utc=r.text(top["created_utc"], "created_utc"),
-        rig_reference=r.text(rig["reference"], "rig.reference"),
-        rig_sha256=r.text(rig["sha256"], "rig.sha256"),
+        name=_text(top["name"], top_key.child("name")),
+        created_utc=_text(top["created_utc"], top_key.child("created_utc")),
+        rig_reference=_text(rig["reference"], rig_key.child("reference")),
+        rig_sha256=_text(rig["sha256"], rig_key.child("sha256")),
         rig_values=rig["values"],
         frames=frames,
         targets=targets,
-        operator=r.text(top.get("operator"), "operator"),
-        notes=r.text(top.get("notes"), "notes"),
+        operator=_text(top.get("operator"), top_key.child("operator")),
+        notes=_text(top.get("notes"), top_key.child("notes")),
     )
     session.rig()  # validate the copied profile now, naming rig.values.<key>
     return session
 
 
-def _frame(r: _Reader, value: Any, key: str, position: str) -> Frame:
-    keys = r.mapping(
-        value, key, required=("file", "sha256", "size_px", "added_utc", "source"),
+def _text(value: Any, key: KeyPath) -> str:
+    """Text as written; an empty YAML value is empty text."""
+    return "" if value is None else key.text(value, strip=False)
+
+
+def _numbers(value: Any, key: KeyPath, unit: str) -> tuple[float, float]:
+    a, b = key.pair(value, "a, b")
+    return key.number(a, unit), key.number(b, unit)
+
+
+def _frame(value: Any, key: KeyPath, position: str) -> Frame:
+    keys = key.mapping(
+        value, required=("file", "sha256", "size_px", "added_utc", "source"),
         optional=("exif",),
     )
-    width, height = r.pair(keys["size_px"], f"{key}.size_px")
+    width, height = _numbers(keys["size_px"], key.child("size_px"), "pixels")
     exif = keys.get("exif") or {}
     if not isinstance(exif, dict):
-        raise r.fail(f"{key}.exif", "expected a mapping")
-    file = r.text(keys["file"], f"{key}.file")
+        raise key.child("exif").error("must be a mapping of keys to values", exif)
+    file = _text(keys["file"], key.child("file"))
     if Path(file).is_absolute() or ".." in Path(file).parts:
-        raise r.fail(f"{key}.file", f"must be a path inside the session, got {file!r}")
+        raise key.child("file").error("must be a path inside the session", file)
     return Frame(
         position=position,
         file=file,
-        sha256=r.text(keys["sha256"], f"{key}.sha256"),
+        sha256=_text(keys["sha256"], key.child("sha256")),
         size_px=(int(width), int(height)),
-        added_utc=r.text(keys["added_utc"], f"{key}.added_utc"),
-        source=r.text(keys["source"], f"{key}.source"),
+        added_utc=_text(keys["added_utc"], key.child("added_utc")),
+        source=_text(keys["source"], key.child("source")),
         exif=exif,
     )
 
 
-def _target(r: _Reader, value: Any, key: str) -> Target:
-    keys = r.mapping(value, key, required=("name", "pixel"),
-                     optional=("window_px", "readings", "note"))
-    name = r.text(keys["name"], f"{key}.name")
-    _check_name(name, f"{r.file}: {key}.name")
+def _target(value: Any, key: KeyPath) -> Target:
+    keys = key.mapping(value, required=("name", "pixel"),
+                       optional=("window_px", "readings", "note"))
+    name = _text(keys["name"], key.child("name"))
+    _check_name(name, f"{key.file}: {key.child('name').key}")
     window = keys.get("window_px", DEFAULT_WINDOW_PX)
     if isinstance(window, bool) or not isinstance(window, int) or window < 1 or window % 2 == 0:
-        raise r.fail(f"{key}.window_px", f"expected an odd positive integer, got {window!r}")
-    readings_data = keys.get("readings") or []
-    if not isinstance(readings_data, list):
-        raise r.fail(f"{key}.readings", "expected a list")
+        raise key.child("window_px").error("must be an odd positive integer", window)
+    readings_key = key.child("readings")
     readings = tuple(
-        _reading(r, item, f"{key}.readings[{i}]") for i, item in enumerate(readings_data)
+        _reading(item, readings_key.item(i))
+        for i, item in enumerate(readings_key.sequence(keys.get("readings")))
     )
     return Target(
         name=name,
-        pixel=r.pair(keys["pixel"], f"{key}.pixel"),
+        pixel=_numbers(keys["pixel"], key.child("pixel"), "pixels"),
         window_px=window,
         readings=readings,
-        note=r.text(keys.get("note"), f"{key}.note"),
+        note=_text(keys.get("note"), key.child("note")),
     )
 
 
-def _reading(r: _Reader, value: Any, key: str) -> LaserReading:
-    keys = r.mapping(
-        value, key, required=("slope_distance_m", "time_utc", "source"),
+def _reading(value: Any, key: KeyPath) -> LaserReading:
+    keys = key.mapping(
+        value, required=("slope_distance_m", "time_utc", "source"),
         optional=("inclination_deg", "raw"),
     )
     inclination = keys.get("inclination_deg")
+    raw = keys.get("raw")
     return LaserReading(
-        slope_distance_m=r.number(keys["slope_distance_m"], f"{key}.slope_distance_m", True),
-        time_utc=r.text(keys["time_utc"], f"{key}.time_utc"),
-        source=r.text(keys["source"], f"{key}.source"),
+        slope_distance_m=key.child("slope_distance_m").positive(keys["slope_distance_m"], "m"),
+        time_utc=_text(keys["time_utc"], key.child("time_utc")),
+        source=_text(keys["source"], key.child("source")),
         inclination_deg=None if inclination is None
-        else r.number(inclination, f"{key}.inclination_deg"),
-        raw=keys.get("raw"),
+        else key.child("inclination_deg").number(inclination, "degrees"),
+        raw=None if raw is None else key.child("raw").text(raw, strip=False),
     )
 
 

@@ -79,8 +79,8 @@ def rig_geometry(args: argparse.Namespace):  # -> RigGeometry
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from rigkit.core.files import write_together
     from rigkit.errors import InputError
-    from rigkit.outputs import write_together
     from rigkit.pipeline import estimate_depth
     from rigkit.pipeline.images import load_grey
     from rigkit.preview import colorize, depth_range

@@ -94,10 +94,10 @@ def _check_out(out: Path, sessions: list[Path]) -> None:
 
 
 def _write_all(out: Path, files: dict[str, str | np.ndarray]) -> None:
-    """All report files at once (:func:`rigkit.outputs.write_together`); a folder that
+    """All report files at once (:func:`rigkit.core.files.write_together`); a folder that
     cannot be created or written is a one-line error naming --out."""
+    from rigkit.core.files import write_together
     from rigkit.errors import InputError
-    from rigkit.outputs import write_together
 
     try:
         out.mkdir(parents=True, exist_ok=True)

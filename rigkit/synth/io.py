@@ -11,16 +11,15 @@ Layout of ``SCENE_DIR/`` (documented in docs/synthetic-scenes.md)::
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import yaml
 
+from rigkit.core.files import write_npy, write_png, write_text
 from rigkit.errors import InputError
 from rigkit.geometry import Camera
 from rigkit.synth.render import expose, render_view
@@ -56,8 +55,8 @@ def write_scene(
         t0 = time.perf_counter()
         cb = (lambda frac, n=name: progress(n, frac)) if progress else None
         radiance, depth = render_view(scene, name, cb)
-        _atomic_png(out_dir / f"{name}.png", expose(scene, name, radiance))
-        _atomic_npy(out_dir / "ground_truth" / f"depth_{name}.npy", depth)
+        write_png(out_dir / f"{name}.png", expose(scene, name, radiance), compression=3)
+        write_npy(out_dir / "ground_truth" / f"depth_{name}.npy", depth)
         timings[name] = time.perf_counter() - t0
     meta = {
         "format": "rigkit-synthetic-scene/1",
@@ -70,23 +69,8 @@ def write_scene(
         "gains": scene.gains,
         "geometry": scene.description(),
     }
-    tmp = out_dir / (SCENE_FILE + ".tmp")
-    tmp.write_text(yaml.safe_dump(meta, sort_keys=False))
-    os.replace(tmp, out_dir / SCENE_FILE)
+    write_text(out_dir / SCENE_FILE, yaml.safe_dump(meta, sort_keys=False))
     return timings
-
-
-def _atomic_png(path: Path, img: np.ndarray) -> None:
-    tmp = path.with_name(path.stem + ".tmp.png")
-    if not cv2.imwrite(str(tmp), img, [cv2.IMWRITE_PNG_COMPRESSION, 3]):
-        raise InputError(f"cannot write {path}")
-    os.replace(tmp, path)
-
-
-def _atomic_npy(path: Path, arr: np.ndarray) -> None:
-    tmp = path.with_name(path.stem + ".tmp.npy")
-    np.save(tmp, arr)
-    os.replace(tmp, path)
 
 
 @dataclass(frozen=True)

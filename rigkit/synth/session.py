@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 import yaml
 
+from rigkit.core.files import write_text
 from rigkit.evaluate import visible_in_right
 from rigkit.session import (
     LaserReading,
     Session,
     add_frame,
     add_target,
-    atomic_write_text,
     create_session,
     utc_now,
 )
@@ -93,7 +93,7 @@ def session_from_rendered(
     for renderings stored as RAW) move into ``raw/`` (copied, then the originals
     removed).
     """
-    atomic_write_text(out_dir / RIG_FILE, yaml.safe_dump(rig_for_scene(scene), sort_keys=False))
+    write_text(out_dir / RIG_FILE, yaml.safe_dump(rig_for_scene(scene), sort_keys=False))
     session = create_session(out_dir, out_dir / RIG_FILE,
                              notes=f"synthetic scene, seed {scene.seed}")
     for view in VIEWS:

@@ -12,12 +12,12 @@ import pytest
 
 from rigkit.cli import main
 from rigkit.comparisons import LOG_NAME, latest_run, read_rows
+from rigkit.core.files import recover_folder
 from rigkit.errors import InputError
 from rigkit.process import (
     auto_jobs,
     compare_target,
     process_session,
-    recover_results,
     run_batch,
 )
 from rigkit.session import Target, load_session
@@ -80,10 +80,10 @@ def test_a_failed_write_leaves_the_old_results(
     copy = copy_session(processed_session, tmp_path)
     before = (copy / "results" / "depth.json").read_text()
 
-    def broken(path: Path, img: np.ndarray) -> None:
+    def broken(img: np.ndarray, compression: int | None = None) -> bytes:
         raise OSError("disk full")
 
-    monkeypatch.setattr("rigkit.outputs.write_png", broken)
+    monkeypatch.setattr("rigkit.core.files.encode_png", broken)
     with pytest.raises(OSError):
         process_session(copy, "20260103T000000Z-0003")
     assert (copy / "results" / "depth.json").read_text() == before
@@ -95,7 +95,7 @@ def test_an_interrupted_swap_is_undone(processed_session: Path, tmp_path: Path) 
     copy = copy_session(processed_session, tmp_path)
     os.rename(copy / "results", copy / ".results-old-20260104T000000Z-0004")
     (copy / ".results-20260105T000000Z-0005").mkdir()
-    recover_results(copy)
+    recover_folder(copy, "results")
     assert (copy / "results" / "depth.npy").is_file()
     assert not list(copy.glob(".results*"))
 

@@ -1,0 +1,4 @@
+"""The lowest layer of shared mechanisms: atomic files, strict YAML, progress, tables.
+
+Nothing here knows about cameras, sessions or depth; everything above may use it.
+"""

@@ -1,0 +1,192 @@
+"""Writing files so that readers see the old version or the new one, never half.
+
+Every write goes to a hidden temporary file with a unique name in the target's own
+folder (so the final rename stays on one file system), is flushed and fsynced, and is
+then renamed over the target with :func:`os.replace`. A failure removes the temporary
+file and leaves the target as it was.
+
+Three granularities:
+
+* one file: :func:`write_text`, :func:`write_bytes`, :func:`write_png`,
+  :func:`write_npy`, or :func:`write_file` choosing by content and suffix;
+* several files in one folder: :func:`write_together` stages them all in a hidden
+  folder first, so a failure never leaves a mix of old and new outputs;
+* a whole folder: :func:`replace_folder` stages a new folder, retires the current one,
+  renames the staged one in and deletes the retired one; :func:`recover_folder`
+  undoes what a crash in the middle of that left behind.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+import shutil
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+
+#: What :func:`write_file` writes: text (UTF-8), bytes, or an array (``.png``: BGR or
+#: grey uint8/uint16; ``.npy``: any array).
+Content = str | bytes | np.ndarray
+
+_RETIRED = "old"
+
+
+def temp_file(folder: Path, name: str) -> tuple[int, Path]:
+    """A new, empty, hidden file ``.<name>.<random>.tmp`` in ``folder``, opened for
+    writing (the descriptor and its path), with the usual permissions (0666 less the
+    umask; ``tempfile.mkstemp`` would make it private)."""
+    while True:
+        path = Path(folder) / f".{name}.{secrets.token_hex(4)}.tmp"
+        try:
+            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
+        except FileExistsError:
+            continue
+
+
+def write_with(path: Path, dump: Callable[[BinaryIO], object]) -> None:
+    """Replace ``path`` atomically with what ``dump(handle)`` writes to a binary handle."""
+    path = Path(path)
+    fd, tmp = temp_file(path.parent, path.name)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            dump(handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_bytes(path: Path, data: bytes) -> None:
+    """Replace ``path`` with ``data`` atomically."""
+    write_with(path, lambda handle: handle.write(data))
+
+
+def write_text(path: Path, text: str) -> None:
+    """Replace ``path`` with ``text`` (UTF-8) atomically."""
+    write_bytes(path, text.encode("utf-8"))
+
+
+def encode_png(img: np.ndarray, compression: int | None = None) -> bytes:
+    """PNG bytes of a BGR or grey image (uint8 or uint16); OSError if OpenCV cannot
+    encode it. ``compression`` 0-9, None for OpenCV's default."""
+    import cv2
+
+    params = [] if compression is None else [cv2.IMWRITE_PNG_COMPRESSION, compression]
+    ok, encoded = cv2.imencode(".png", img, params)
+    if not ok:
+        raise OSError(f"cannot encode a {img.shape} {img.dtype} image as PNG")
+    return encoded.tobytes()
+
+
+def write_png(path: Path, img: np.ndarray, compression: int | None = None) -> None:
+    """Replace ``path`` with ``img`` as PNG atomically."""
+    write_bytes(path, encode_png(img, compression))
+
+
+def write_npy(path: Path, array: np.ndarray) -> None:
+    """Replace ``path`` with ``array`` in NumPy's ``.npy`` format atomically."""
+    write_with(path, lambda handle: np.save(handle, array))
+
+
+def _dump(path: Path, content: Content) -> Callable[[BinaryIO], object]:
+    """How to write ``content`` to ``path``: by type, and for arrays by suffix."""
+    if isinstance(content, str):
+        data = content.encode("utf-8")
+        return lambda handle: handle.write(data)
+    if isinstance(content, bytes):
+        return lambda handle: handle.write(content)
+    if path.suffix == ".png":
+        png = encode_png(content)
+        return lambda handle: handle.write(png)
+    if path.suffix == ".npy":
+        return lambda handle: np.save(handle, content)
+    raise ValueError(f"{path}: no writer for an array with this suffix")
+
+
+def write_file(path: Path, content: Content) -> None:
+    """Replace ``path`` atomically with text, bytes, or an array as ``.png``/``.npy``."""
+    write_with(path, _dump(Path(path), content))
+
+
+def _write_new(path: Path, content: Content) -> None:
+    """Write a file that nobody reads yet (inside a staging folder): write and fsync."""
+    dump = _dump(path, content)
+    with path.open("xb") as handle:
+        dump(handle)
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make renames inside ``folder`` durable (best effort: not every system allows it)."""
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def write_together(folder: Path, files: Mapping[str, Content]) -> None:
+    """Write ``files`` (name -> content) into ``folder``: all of them into a hidden
+    temporary folder inside it first, then each renamed into place, so a failure never
+    leaves a mix of old and new outputs that looks complete. OSError if a write fails;
+    nothing temporary is left behind either way."""
+    folder = Path(folder)
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".rigkit-") as tmp:
+        for name, content in files.items():
+            _write_new(Path(tmp) / name, content)
+        for name in files:
+            os.replace(Path(tmp) / name, folder / name)
+    _fsync_folder(folder)
+
+
+def replace_folder(
+    parent: Path, name: str, files: Mapping[str, Content], stage_id: str | None = None
+) -> None:
+    """Replace the folder ``parent/name`` as a whole by one holding exactly ``files``.
+
+    The new folder is staged as ``.<name>-<stage_id>`` (a random id by default), the
+    current one is renamed to ``.<name>-old-<stage_id>``, the staged one renamed in and
+    the retired one deleted. Readers see the old folder or the new one; a crash leaves
+    something :func:`recover_folder` repairs (it runs first here too). On a failure
+    before the swap, the staged folder is removed and the current one is untouched.
+    """
+    parent = Path(parent)
+    recover_folder(parent, name)
+    stage_id = stage_id or secrets.token_hex(4)
+    staging = parent / f".{name}-{stage_id}"
+    staging.mkdir()
+    try:
+        for file_name, content in files.items():
+            _write_new(staging / file_name, content)
+        _fsync_folder(staging)
+        current = parent / name
+        retired = parent / f".{name}-{_RETIRED}-{stage_id}"
+        if current.exists():
+            os.rename(current, retired)
+        os.rename(staging, current)
+        _fsync_folder(parent)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    shutil.rmtree(retired, ignore_errors=True)
+
+
+def recover_folder(parent: Path, name: str) -> None:
+    """Undo an interrupted :func:`replace_folder`: if ``parent/name`` is gone, restore
+    the newest retired copy; then delete every staged or retired folder left over."""
+    parent = Path(parent)
+    current = parent / name
+    retired = sorted(parent.glob(f".{name}-{_RETIRED}-*"))
+    if not current.exists() and retired:
+        os.rename(retired.pop(), current)
+    for leftover in [*retired, *parent.glob(f".{name}-*")]:
+        shutil.rmtree(leftover, ignore_errors=True)
