@@ -8,8 +8,8 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from rigkit.comparisons import Comparison
-from rigkit.session import Target
+from rigkit.capture import Target
+from rigkit.capture.comparisons import Comparison
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _WHITE = (255, 255, 255)

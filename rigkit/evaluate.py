@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rigkit.capture import RESULTS_DIR
 from rigkit.errors import InputError
-from rigkit.session import RESULTS_DIR
 from rigkit.synth.io import SceneTruth, load_scene
 
 THRESHOLDS = (0.005, 0.01, 0.02, 0.03)

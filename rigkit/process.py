@@ -29,18 +29,7 @@ from typing import Any
 import numpy as np
 
 from rigkit import __version__
-from rigkit.comparisons import (
-    LOG_NAME,
-    STATUS_NO_ESTIMATE,
-    STATUS_NO_READING,
-    STATUS_OK,
-    Comparison,
-    append_rows,
-    csv_text,
-)
-from rigkit.core.files import Content, replace_folder
-from rigkit.errors import InputError, RigkitError
-from rigkit.session import (
+from rigkit.capture import (
     POSITIONS,
     RESULTS_DIR,
     Session,
@@ -51,11 +40,18 @@ from rigkit.session import (
     log_event,
     utc_now,
 )
-
-#: Finding codes from the EXIF check that stop processing (``force`` overrides): a
-#: different focal length breaks the one-f assumption the depth scale rests on.
-FATAL_FINDINGS = frozenset({"capture.focal_vs_profile"})
-FATAL_MISMATCH_FIELDS = frozenset({"FocalLength", "FocalLengthIn35mmFilm", "ExifImageWidth"})
+from rigkit.capture.checks import session_warnings
+from rigkit.capture.comparisons import (
+    LOG_NAME,
+    STATUS_NO_ESTIMATE,
+    STATUS_NO_READING,
+    STATUS_OK,
+    Comparison,
+    append_rows,
+    csv_text,
+)
+from rigkit.core.files import Content, replace_folder
+from rigkit.errors import InputError, RigkitError
 
 #: Memory a session needs, per pixel of one frame, at the peak of decoding and the
 #: pipeline (measured by benchmarks/bench_process.py), plus a fixed overhead.
@@ -129,14 +125,14 @@ def _exclusive(session_path: Path) -> Iterator[None]:
 def _process_locked(
     session: Session, run_id: str, force: bool, report: StageReport, t0: float
 ) -> Outcome:
-    from rigkit.frames import load_frames
+    from rigkit.capture.frames import load_frames
     from rigkit.pipeline import RigGeometry, estimate_depth
 
     problems = frame_problems(session)
     if problems:
         raise InputError(f"{session.path}: " + "; ".join(problems))
     profile = session.rig()
-    warnings = _exif_warnings(session, force)
+    warnings = session_warnings(session, force)
     report("reading frames", 0.02)
     left, right, back = load_frames(session)
     report("reading frames", 0.1)
@@ -181,26 +177,6 @@ def _process_locked(
         session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
         seconds, rows, warnings,
     )
-
-
-def _exif_warnings(session: Session, force: bool) -> tuple[str, ...]:
-    """EXIF findings as warnings; InputError for a fatal one unless ``force``."""
-    from rigkit.rigcheck import check_capture
-
-    findings = check_capture(session.rig(), [session.frame_path(p) for p in POSITIONS])
-    fatal = [
-        f for f in findings
-        if f.code in FATAL_FINDINGS
-        or (f.code == "capture.mismatch" and f.field in FATAL_MISMATCH_FIELDS)
-    ]
-    if fatal and not force:
-        raise InputError(
-            f"{session.path}: " + "; ".join(f.message for f in fatal)
-            + " (--force processes it anyway)"
-        )
-    if [f.code for f in findings] == ["capture.no_exif"] * len(POSITIONS):
-        return ("no EXIF in any frame (e.g. rendered PNGs): capture settings not checked",)
-    return tuple(f.message for f in findings)
 
 
 # -- comparing targets with the depth map ----------------------------------------------------

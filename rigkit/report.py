@@ -6,7 +6,7 @@ laser-range bucket, :func:`format_text` and :func:`write_csv` give the table, an
 :func:`plot_estimate_vs_laser` and :func:`plot_error_vs_range` draw the two plots as BGR
 images with OpenCV (write them with :func:`rigkit.core.files.write_png`).
 
-Sign convention (as in :mod:`rigkit.comparisons`): ``error = estimate - laser``; a
+Sign convention (as in :mod:`rigkit.capture.comparisons`): ``error = estimate - laser``; a
 positive error puts the target too far. Percentages are of the laser range. Statistics
 use the usable (``ok``) rows only; the others are counted by status.
 """
@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rigkit.comparisons import (
+from rigkit.capture.comparisons import (
     LOG_NAME,
     STATUS_OK,
     Comparison,

@@ -53,7 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.comparisons import csv_text
+    from rigkit.capture.comparisons import csv_text
     from rigkit.errors import InputError
     from rigkit.report import (
         collect,

@@ -10,10 +10,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rigkit.rig import CAMERA_ROLES, RigProfile, fov_deg, load_rig
-from rigkit.rigcheck import (
+from rigkit.rig.budget import (
     DISPARITY_ERROR_PX,
     OFFSET_ERROR_PX,
     RELATIVE_ROTATION_DEG,
+    Finding,
     RigCheck,
     affine_residual_px,
     check_rig,
@@ -126,10 +127,18 @@ def run_check(args: argparse.Namespace) -> int:
         ranges,
         disparity_error_px=args.disparity_error_px,
         offset_error_px=args.offset_error_px,
-        capture=args.capture,
+        capture_findings=_capture_findings(profile, args.capture),
     )
     print(json.dumps(check_to_dict(result), indent=2) if args.json else format_check(result))
     return 1 if result.findings else 0
+
+
+def _capture_findings(profile: RigProfile, frames: Sequence[Path] | None) -> list[Finding]:
+    if frames is None:
+        return []
+    from rigkit.capture.checks import check_capture
+
+    return check_capture(profile, frames)
 
 
 # --------------------------------------------------------------------------- text output

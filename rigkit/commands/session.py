@@ -77,7 +77,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_new(args: argparse.Namespace) -> int:
-    from rigkit.session import create_session
+    from rigkit.capture import create_session
 
     session = create_session(args.session, args.rig, operator=args.operator, notes=args.notes)
     print(f"created session {session.path} (rig {session.rig().name}); next: add the left, "
@@ -86,7 +86,7 @@ def run_new(args: argparse.Namespace) -> int:
 
 
 def run_add_frame(args: argparse.Namespace) -> int:
-    from rigkit.session import add_frame, load_session
+    from rigkit.capture import add_frame, load_session
 
     session = add_frame(load_session(args.session), args.position, args.file,
                         replace_existing=args.replace)
@@ -102,7 +102,7 @@ def run_add_frame(args: argparse.Namespace) -> int:
 
 
 def _print_exif_findings(session: Any) -> None:
-    from rigkit.rigcheck import check_capture
+    from rigkit.capture.checks import check_capture
 
     paths = [session.frame_path(p) for p in ("left", "right", "back")]
     findings = check_capture(session.rig(), paths)
@@ -113,7 +113,7 @@ def _print_exif_findings(session: Any) -> None:
 
 
 def run_add_target(args: argparse.Namespace) -> int:
-    from rigkit.session import add_target, load_session
+    from rigkit.capture import add_target, load_session
 
     session = load_session(args.session)
     name = args.name or _next_name(session)
@@ -139,7 +139,7 @@ def _next_name(session: Any) -> str:
 
 
 def _typed_readings(ranges: list[float], inclination: float | None) -> list[Any]:
-    from rigkit.session import LaserReading, utc_now
+    from rigkit.capture import LaserReading, utc_now
 
     return [LaserReading(r, utc_now(), "manual", inclination) for r in ranges]
 
@@ -147,10 +147,10 @@ def _typed_readings(ranges: list[float], inclination: float | None) -> list[Any]
 def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
     from datetime import UTC, datetime
 
+    from rigkit.capture import LaserReading
     from rigkit.errors import InputError
     from rigkit.rangefinder import open_rangefinder
     from rigkit.rangefinder.protocols import escape_bytes
-    from rigkit.session import LaserReading
 
     spec = session.rig().rangefinder
     url = args.device
@@ -182,7 +182,7 @@ def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from rigkit.session import load_session
+    from rigkit.capture import load_session
 
     session = load_session(args.session)
     if args.json:
@@ -195,7 +195,7 @@ def run_show(args: argparse.Namespace) -> int:
 def _show_data(session: Any) -> dict[str, Any]:
     from dataclasses import asdict
 
-    from rigkit.session import frame_problems, session_to_data
+    from rigkit.capture import frame_problems, session_to_data
 
     data = session_to_data(session)
     data["problems"] = frame_problems(session)
@@ -204,14 +204,14 @@ def _show_data(session: Any) -> dict[str, Any]:
 
 
 def _last_rows(session: Any) -> list[Any]:
-    from rigkit.comparisons import LOG_NAME, latest_run, read_rows
+    from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
 
     log = session.path / LOG_NAME
     return latest_run(read_rows(log)) if log.is_file() else []
 
 
 def _show_text(session: Any) -> str:
-    from rigkit.session import POSITIONS, frame_problems
+    from rigkit.capture import POSITIONS, frame_problems
 
     lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
     if session.operator:

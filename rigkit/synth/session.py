@@ -16,9 +16,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from rigkit.core.files import write_text
-from rigkit.evaluate import visible_in_right
-from rigkit.session import (
+from rigkit.capture import (
     LaserReading,
     Session,
     add_frame,
@@ -26,6 +24,8 @@ from rigkit.session import (
     create_session,
     utc_now,
 )
+from rigkit.core.files import write_text
+from rigkit.evaluate import visible_in_right
 from rigkit.synth.io import VIEWS, load_scene, write_scene
 from rigkit.synth.scene import Scene
 

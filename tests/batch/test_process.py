@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rigkit.capture import Target, load_session
+from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
 from rigkit.cli import main
-from rigkit.comparisons import LOG_NAME, latest_run, read_rows
 from rigkit.core.files import recover_folder
 from rigkit.errors import InputError
 from rigkit.process import (
@@ -20,7 +21,6 @@ from rigkit.process import (
     process_session,
     run_batch,
 )
-from rigkit.session import Target, load_session
 from tests.conftest import copy_session
 
 

@@ -9,9 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from rigkit.cli import main
-from rigkit.errors import InputError
-from rigkit.session import (
+from rigkit.capture import (
     LaserReading,
     add_frame,
     add_target,
@@ -19,6 +17,8 @@ from rigkit.session import (
     frame_problems,
     load_session,
 )
+from rigkit.cli import main
+from rigkit.errors import InputError
 from rigkit.synth import load_scene
 from tests.conftest import copy_session
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rigkit import cli
-from rigkit.comparisons import (
+from rigkit.capture.comparisons import (
     LOG_NAME,
     STATUS_NO_ESTIMATE,
     STATUS_NO_READING,

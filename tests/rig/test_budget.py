@@ -1,25 +1,21 @@
-"""The rig check: error budget against the formulas, geometry warnings, EXIF capture check."""
+"""The rig check: error budget against the formulas, geometry warnings."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from rigkit.cli import main
 from rigkit.errors import InputError
-from rigkit.exif import read_exif
 from rigkit.rig import Baseline, load_rig
-from rigkit.rigcheck import (
+from rigkit.rig.budget import (
     ErrorModel,
     affine_residual_px,
     anchor_error_fraction,
     back_shift_px,
     budget_row,
-    check_capture,
     check_rig,
     depth_error_from_disparity,
     disparity_px,
@@ -32,10 +28,6 @@ P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
 VEHICLE = ROOT / "rigs" / "vehicle-2m.yaml"
 SYNTHETIC = ROOT / "rigs" / "synthetic.yaml"
 P1000_FOCAL_PX = 400.0 * 1.25 * 4608 / math.hypot(36.0, 24.0)  # 53,251.2 px
-
-Image = pytest.importorskip("PIL.Image")
-IFDRational = pytest.importorskip("PIL.TiffImagePlugin").IFDRational
-
 
 def _model(**changes: Any) -> ErrorModel:
     values: dict[str, Any] = {
@@ -174,176 +166,3 @@ def test_too_close_for_overlap_is_flagged(tmp_path: Path) -> None:
 def test_ranges_must_be_positive() -> None:
     with pytest.raises(InputError, match="ranges must be > 0 m"):
         check_rig(load_rig(P1000), [0.0])
-
-
-# --------------------------------------------------------------------------- EXIF capture check
-
-
-def _frame(path: Path, **changes: Any) -> Path:
-    """A tiny image whose EXIF says P1000 at 400 mm-eq, 1/500 s, f/5.6, ISO 200, 4608x3456."""
-    tags: dict[str, Any] = {
-        "model": "COOLPIX P1000",
-        "focal_mm": IFDRational(719, 10),
-        "focal_35mm": 400,
-        "exposure": IFDRational(1, 500),
-        "f_number": IFDRational(56, 10),
-        "iso": 200,
-        "size": (4608, 3456),
-        "time": None,
-    }
-    tags.update(changes)
-    exif = Image.Exif()
-    exif[0x010F] = "NIKON"
-    exif[0x0110] = tags["model"]
-    sub = exif.get_ifd(0x8769)
-    for tag, key in (
-        (0x920A, "focal_mm"),
-        (0xA405, "focal_35mm"),
-        (0x829A, "exposure"),
-        (0x829D, "f_number"),
-        (0x8827, "iso"),
-    ):
-        if tags[key] is not None:
-            sub[tag] = tags[key]
-    sub[0xA002], sub[0xA003] = tags["size"]
-    if tags["time"] is not None:
-        sub[0x9003] = tags["time"]
-    Image.new("L", (8, 6)).save(path, exif=exif.tobytes())
-    return path
-
-
-@pytest.mark.parametrize("suffix", [".jpg", ".tif"])
-def test_read_exif(tmp_path: Path, suffix: str) -> None:
-    info = read_exif(_frame(tmp_path / f"frame{suffix}"))
-    assert (info.make, info.model) == ("NIKON", "COOLPIX P1000")
-    assert info.focal_length_mm == pytest.approx(71.9)
-    assert info.focal_length_35mm_mm == 400.0
-    assert info.exposure_time_s == pytest.approx(0.002)
-    assert info.f_number == pytest.approx(5.6)
-    assert info.iso == 200.0
-    assert info.image_size_px == (4608, 3456)
-    assert info.has_exif
-
-
-def test_read_exif_without_exif(tmp_path: Path) -> None:
-    path = tmp_path / "plain.png"
-    Image.new("L", (8, 6)).save(path)
-    assert not read_exif(path).has_exif
-
-
-def test_read_exif_missing_file(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match=r"gone\.jpg: no such image"):
-        read_exif(tmp_path / "gone.jpg")
-
-
-def test_matching_capture_has_no_findings(tmp_path: Path) -> None:
-    frames = [_frame(tmp_path / name) for name in ("L.jpg", "R.jpg", "B.tif")]
-    assert check_capture(load_rig(P1000), frames) == []
-
-
-def test_capture_mismatches_name_frame_and_field(tmp_path: Path) -> None:
-    frames = [
-        _frame(tmp_path / "L.jpg"),
-        _frame(tmp_path / "R.jpg", exposure=IFDRational(1, 250)),
-        _frame(tmp_path / "B.jpg", focal_mm=IFDRational(539, 10), focal_35mm=300),
-    ]
-    findings = check_capture(load_rig(P1000), frames)
-    found = {(f.code, f.frame, f.field) for f in findings}
-    assert found == {
-        ("capture.mismatch", "back", "FocalLength"),
-        ("capture.mismatch", "back", "FocalLengthIn35mmFilm"),
-        ("capture.mismatch", "right", "ExposureTime"),
-        ("capture.focal_vs_profile", "back", "FocalLengthIn35mmFilm"),
-    }
-    messages = "\n".join(f.message for f in findings)
-    assert (
-        "right frame (R.jpg): ExposureTime 1/250 s differs from the left frame's 1/500 s"
-        in messages
-    )
-    assert "back frame (B.jpg): FocalLengthIn35mmFilm 300 mm is 39,938 px, -25.0 %" in messages
-
-
-def test_capture_times_too_far_apart(tmp_path: Path) -> None:
-    times = ("2026:11:22 10:00:00", "2026:11:22 10:04:10", "2026:11:22 10:09:30")
-    frames = [_frame(tmp_path / f"{i}.jpg", time=t) for i, t in enumerate(times)]
-    assert check_capture(load_rig(P1000), frames) == []
-    frames[2] = _frame(tmp_path / "late.jpg", time="2026:11:22 11:15:00")
-    (finding,) = check_capture(load_rig(P1000), frames)
-    assert finding.code == "capture.time_spread"
-    assert "frames taken 75 min apart (left 10:00:00, right 10:04:10, back 11:15:00)" in (
-        finding.message
-    )
-    frames[2] = _frame(tmp_path / "bad.jpg", time="yesterday")
-    assert [f.code for f in check_capture(load_rig(P1000), frames)] == ["capture.bad_time"]
-
-
-def test_capture_size_model_and_missing_fields(tmp_path: Path) -> None:
-    frames = [
-        _frame(tmp_path / "L.jpg", size=(3456, 4608)),
-        _frame(tmp_path / "R.jpg", model="D850"),
-        _frame(tmp_path / "B.jpg", iso=None),
-    ]
-    findings = check_capture(load_rig(P1000), frames)
-    assert {(f.code, f.frame) for f in findings} == {
-        ("capture.size_vs_profile", "left"),
-        ("capture.model_vs_profile", "right"),
-        ("capture.missing_field", "back"),
-    }
-    assert any("rotated to portrait" in f.message for f in findings)
-
-
-def test_capture_focal_in_real_mm_uses_the_sensor_width(tmp_path: Path) -> None:
-    # vehicle-2m states f = 150 mm: a frame recording 150 mm matches, 160 mm (+6.7 %) does not.
-    frames = [
-        _frame(
-            tmp_path / f"{name}.jpg", model="cam", focal_mm=mm, focal_35mm=None, size=(4096, 3000)
-        )
-        for name, mm in (("L", 150), ("R", 150), ("B", 160))
-    ]
-    findings = check_capture(load_rig(VEHICLE), frames)
-    focal = [f for f in findings if f.code == "capture.focal_vs_profile"]
-    assert [(f.frame, f.field) for f in focal] == [("back", "FocalLength")]
-    assert "+6.7 % off" in focal[0].message
-
-
-def test_capture_without_exif_and_wrong_count(tmp_path: Path) -> None:
-    plain = tmp_path / "plain.png"
-    Image.new("L", (8, 6)).save(plain)
-    frames = [_frame(tmp_path / "L.jpg"), _frame(tmp_path / "R.jpg"), plain]
-    findings = check_capture(load_rig(P1000), frames)
-    assert [(f.code, f.frame) for f in findings] == [("capture.no_exif", "back")]
-    with pytest.raises(InputError, match="three images"):
-        check_capture(load_rig(P1000), frames[:2])
-
-
-# --------------------------------------------------------------------------- the command
-
-
-def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["rig", "check", str(P1000)]) == 0
-    out = capsys.readouterr().out
-    assert "53,251 px +-1 %" in out
-    assert "4.95 x 3.72 deg" in out
-    assert "1/150" in out and "0.382" in out  # at the profile's nominal 300 m
-    assert "3 % depth error: reached at 4,667 m" in out
-    assert out.rstrip().endswith("warnings: none")
-
-
-def test_cli_json_and_warning_exit_code(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    path = _profile(tmp_path, 13_000, 0.5, 0.3)
-    assert main(["rig", "check", str(path), "--range", "250", "--range", "500", "--json"]) == 1
-    data = json.loads(capsys.readouterr().out)
-    assert data["focal_px"] == 13_000
-    assert [g["range_m"] for g in data["geometry"]] == [250.0, 500.0]
-    assert len(data["error_budget"]) == 9
-    assert data["error_budget"][0]["total_m"] == pytest.approx(
-        budget_row(ErrorModel.from_profile(load_rig(path)), 100.0).total_m
-    )
-    assert {w["code"] for w in data["warnings"]} >= {"C_lb_too_small", "fov_too_wide"}
-
-
-def test_cli_rejects_a_negative_range(capsys: pytest.CaptureFixture[str]) -> None:
-    with pytest.raises(SystemExit) as caught:
-        main(["rig", "check", str(P1000), "--range", "-5"])
-    assert caught.value.code == 2
-    assert "must be > 0" in capsys.readouterr().err

@@ -2,24 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
+from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
+from rigkit.capture.session import DERIVED_DIR, POSITIONS, Session
 from rigkit.errors import InputError
-from rigkit.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.session import DERIVED_DIR, POSITIONS, Session
-
-
-def image_size(path: Path, cache_dir: Path, sha256: str) -> tuple[int, int]:
-    """(width, height) in px of the image rigkit decodes from ``path``.
-
-    Decodes the file, which proves it readable (InputError naming it if not), and leaves
-    a RAW file's decoded image in ``cache_dir`` under its content hash ``sha256``.
-    """
-    cache_dir.mkdir(parents=True, exist_ok=True)
-    grey = load_linear_grey(path, cache_dir, sha256)
-    return int(grey.shape[1]), int(grey.shape[0])
 
 
 def load_frames(session: Session) -> list[np.ndarray]:

@@ -10,7 +10,7 @@ RAW frames are decoded to *linear* data: values proportional to the light on the
 sensor, 1.0 at the sensor's white level. Decoding keeps the sensor's pixel grid: the
 EXIF Orientation tag is *not* applied (see :func:`decode_raw`), and neither is it for
 PNG/TIFF/JPEG frames, so every frame has the size and layout the camera recorded and
-that ``rigkit.exif.ExifInfo.image_size_px`` reports.
+that ``rigkit.capture.exif.ExifInfo.image_size_px`` reports.
 
 Decoding a large RAW file takes seconds, so :func:`load_linear_grey` can keep the
 decoded grey image as a 16-bit PNG in a cache folder, named after the file's SHA-256.
@@ -180,6 +180,17 @@ def load_linear_grey(
     if cache is not None:
         _write_cache(cache, grey16)
     return _from_u16(grey16)
+
+
+def image_size(path: Path, cache_dir: Path, sha256: str) -> tuple[int, int]:
+    """(width, height) in px of the image rigkit decodes from ``path``.
+
+    Decodes the file, which proves it readable (InputError naming it if not), and leaves
+    a RAW file's decoded image in ``cache_dir`` under its content hash ``sha256``.
+    """
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    grey = load_linear_grey(path, cache_dir, sha256)
+    return int(grey.shape[1]), int(grey.shape[0])
 
 
 def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool) -> list[np.ndarray]:

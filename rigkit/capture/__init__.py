@@ -1,0 +1,52 @@
+"""Capture sessions: the frames (RAW or PNG/TIFF/JPEG, with EXIF), laser targets and rig
+of one field capture in a folder, the capture check, and the laser comparisons log.
+
+The public names are re-exported here; modules inside the package import from each
+other directly.
+"""
+
+from rigkit.capture.actions import (
+    add_frame,
+    add_target,
+    create_session,
+    file_sha256,
+    frame_problems,
+)
+from rigkit.capture.comparisons import Comparison, latest_run, read_rows
+from rigkit.capture.session import (
+    POSITIONS,
+    RESULTS_DIR,
+    Frame,
+    LaserReading,
+    Session,
+    Target,
+    is_session,
+    load_session,
+    log_event,
+    save_session,
+    session_to_data,
+    utc_now,
+)
+
+__all__ = [
+    "POSITIONS",
+    "RESULTS_DIR",
+    "Comparison",
+    "Frame",
+    "LaserReading",
+    "Session",
+    "Target",
+    "add_frame",
+    "add_target",
+    "create_session",
+    "file_sha256",
+    "frame_problems",
+    "is_session",
+    "latest_run",
+    "load_session",
+    "log_event",
+    "read_rows",
+    "save_session",
+    "session_to_data",
+    "utc_now",
+]

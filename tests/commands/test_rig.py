@@ -1,0 +1,44 @@
+"""``rigkit rig check``: the text table, JSON output and exit codes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from rigkit.cli import main
+from rigkit.rig import ErrorModel, budget_row, load_rig
+from tests.rig.test_budget import P1000, _profile
+
+# --------------------------------------------------------------------------- the command
+
+
+def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["rig", "check", str(P1000)]) == 0
+    out = capsys.readouterr().out
+    assert "53,251 px +-1 %" in out
+    assert "4.95 x 3.72 deg" in out
+    assert "1/150" in out and "0.382" in out  # at the profile's nominal 300 m
+    assert "3 % depth error: reached at 4,667 m" in out
+    assert out.rstrip().endswith("warnings: none")
+
+
+def test_cli_json_and_warning_exit_code(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _profile(tmp_path, 13_000, 0.5, 0.3)
+    assert main(["rig", "check", str(path), "--range", "250", "--range", "500", "--json"]) == 1
+    data = json.loads(capsys.readouterr().out)
+    assert data["focal_px"] == 13_000
+    assert [g["range_m"] for g in data["geometry"]] == [250.0, 500.0]
+    assert len(data["error_budget"]) == 9
+    assert data["error_budget"][0]["total_m"] == pytest.approx(
+        budget_row(ErrorModel.from_profile(load_rig(path)), 100.0).total_m
+    )
+    assert {w["code"] for w in data["warnings"]} >= {"C_lb_too_small", "fov_too_wide"}
+
+
+def test_cli_rejects_a_negative_range(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as caught:
+        main(["rig", "check", str(P1000), "--range", "-5"])
+    assert caught.value.code == 2
+    assert "must be > 0" in capsys.readouterr().err
