@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from rigkit.errors import RigkitError
-from rigkit.evaluate import evaluate_scenes, format_table, write_csv
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
+from rigkit.synth.evaluate import evaluate_scenes, format_table, write_csv
 
 
 def seed_list(text: str) -> list[int]:

@@ -94,7 +94,12 @@ def file_sha256(path: Path) -> str:
 
 
 def add_frame(
-    session: Session, position: str, source: str | Path, *, replace_existing: bool = False
+    session: Session,
+    position: str,
+    source: str | Path,
+    *,
+    replace_existing: bool = False,
+    origin: str | None = None,
 ) -> Session:
     """Copy ``source`` into ``raw/`` as the frame for ``position`` and record it.
 
@@ -102,6 +107,9 @@ def add_frame(
     EXIF is recorded. An existing frame for the position is only replaced with
     ``replace_existing``; its file stays in ``raw/``. A file already in ``raw/`` (same
     name) is never overwritten: identical content is reused, different content refused.
+    ``origin`` is what session.yaml records as the frame's ``source``; by default the
+    file's absolute path (a file rigkit made itself says so instead, e.g. ``rendered by
+    rigkit synth, seed 7``, which does not depend on the machine).
     """
     if position not in POSITIONS:
         raise InputError(f"position {position!r}: expected one of {', '.join(POSITIONS)}")
@@ -125,7 +133,7 @@ def add_frame(
         sha256=sha256,
         size_px=size,
         added_utc=utc_now(),
-        source=str(source.resolve()),
+        source=origin or str(source.resolve()),
         exif=exif_fields(exif),
     )
     _check_same_size(session, frame)

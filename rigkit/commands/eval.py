@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.evaluate import evaluate_scenes, format_table, write_csv
+    from rigkit.synth.evaluate import evaluate_scenes, format_table, write_csv
 
     rows = evaluate_scenes(args.scenes, args.depth_dir)
     print(format_table(rows))

@@ -25,7 +25,7 @@ from rigkit.capture import (
     utc_now,
 )
 from rigkit.core.files import write_text
-from rigkit.evaluate import visible_in_right
+from rigkit.synth.evaluate import visible_in_right
 from rigkit.synth.io import VIEWS, load_scene, write_scene
 from rigkit.synth.scene import Scene
 
@@ -98,7 +98,8 @@ def session_from_rendered(
                              notes=f"synthetic scene, seed {scene.seed}")
     for view in VIEWS:
         rendered = out_dir / f"{view}{frame_suffix}"
-        session = add_frame(session, view, rendered)
+        session = add_frame(session, view, rendered,
+                            origin=f"rendered by rigkit synth, seed {scene.seed}")
         rendered.unlink()  # rendered by us a moment ago; the copy in raw/ is the frame
     truth = load_scene(out_dir)
     rng = np.random.default_rng(seed)

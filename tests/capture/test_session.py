@@ -199,6 +199,8 @@ def test_synth_writes_a_session_with_true_laser_targets(tmp_path: Path) -> None:
     assert sorted(p.name for p in (out / "raw").iterdir()) == ["back.png", "left.png",
                                                                "right.png"]
     assert not (out / "left.png").exists()
+    # The record of where a frame came from does not depend on the machine.
+    assert {f.source for f in session.frames.values()} == {"rendered by rigkit synth, seed 9"}
     truth = load_scene(out)
     K = truth.cameras["left"].K
     for target in session.targets:
@@ -210,3 +212,9 @@ def test_synth_writes_a_session_with_true_laser_targets(tmp_path: Path) -> None:
         assert reading.slope_distance_m == pytest.approx(float(target.note.split()[2]))
         assert reading.source == "simulated"
     assert session.rig().focal_px == pytest.approx(160 / np.tan(np.radians(3)))
+
+
+def test_bundled_example_records_no_machine_path() -> None:
+    example = load_session(RIG.parents[1] / "capture" / "example")
+    assert {f.source for f in example.frames.values()} == {"rendered by rigkit synth, seed 7"}
+    assert frame_problems(example) == []

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rigkit.errors import InputError
-from rigkit.evaluate import depth_metrics, evaluate_scenes, format_table, visible_in_right
+from rigkit.synth.evaluate import depth_metrics, evaluate_scenes, format_table, visible_in_right
 
 
 @pytest.fixture(scope="module")
