@@ -52,6 +52,7 @@ from rigkit.capture.comparisons import (
 )
 from rigkit.core.files import Content, replace_folder
 from rigkit.errors import InputError, RigkitError
+from rigkit.rangefinder.ranging import profile_range_from_depth
 
 #: Memory a session needs, per pixel of one frame, at the peak of decoding and the
 #: pipeline (measured by benchmarks/bench_process.py), plus a fixed overhead.
@@ -188,8 +189,9 @@ def compare_target(
     """The laser range of ``target`` against the depth map's range at its pixel.
 
     ``depth``, ``sigma``: (H, W) float32, metres, z in the left camera. The estimate is
-    the median z over the target's window, turned into a 3D point on the centre pixel's
-    ray and measured from the laser's aperture (rig profile's rangefinder offset).
+    the median z over the target's window, turned into the range along the centre
+    pixel's ray from the laser's aperture (rig profile's rangefinder offset) by
+    :func:`rigkit.rangefinder.ranging.range_from_depth`.
     """
     profile = session.rig()
     height, width = depth.shape
@@ -206,7 +208,7 @@ def compare_target(
     if finite.any():
         z = float(np.median(window[finite]))
         z_sigma = float(np.median(window_sigma[finite]))
-        estimate = _range_from_z(z, (u, v), profile, (width, height))
+        estimate = profile_range_from_depth(profile, (width, height), z, (u, v))
         sigma_range = z_sigma * estimate / z
     status = STATUS_OK if finite.any() and laser.size else (
         STATUS_NO_READING if not laser.size else STATUS_NO_ESTIMATE
@@ -230,29 +232,6 @@ def compare_target(
         error_pct=100 * error / laser_range if laser.size else math.nan,
         status=status,
     )
-
-
-def _range_from_z(z: float, pixel: tuple[float, float], profile: Any, size: tuple[int, int]
-                  ) -> float:
-    """Distance from the laser aperture to the point at depth ``z`` on ``pixel``'s ray.
-
-    The principal point is the profile's, else the image centre (pixel centres at
-    integers); f is the profile's. The aperture offset is (right, up, forward) in the
-    left camera's frame (x right, y down, z forward).
-    """
-    camera = profile.cameras["left"]
-    width, height = size
-    if camera.principal_point_px is not None:
-        cx, cy = camera.principal_point_px[0] - 0.5, camera.principal_point_px[1] - 0.5
-    else:
-        cx, cy = (width - 1) / 2, (height - 1) / 2
-    f = profile.focal_px
-    point = np.array([(pixel[0] - cx) / f * z, (pixel[1] - cy) / f * z, z])
-    offset = (0.0, 0.0, 0.0)
-    if profile.rangefinder is not None and profile.rangefinder.offset_m is not None:
-        offset = profile.rangefinder.offset_m
-    aperture = np.array([offset[0], -offset[1], offset[2]])
-    return float(np.linalg.norm(point - aperture))
 
 
 # -- writing results -------------------------------------------------------------------------

@@ -150,7 +150,7 @@ def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
     from rigkit.capture import LaserReading
     from rigkit.errors import InputError
     from rigkit.rangefinder import open_rangefinder
-    from rigkit.rangefinder.protocols import escape_bytes
+    from rigkit.rangefinder.framing import escape_bytes
 
     spec = session.rig().rangefinder
     url = args.device

@@ -31,7 +31,7 @@ from typing import Any, Protocol, TextIO
 import serial
 
 from rigkit.errors import InputError
-from rigkit.rangefinder.protocols import (
+from rigkit.rangefinder.framing import (
     ChecksumError,
     FrameError,
     Notice,
@@ -39,8 +39,8 @@ from rigkit.rangefinder.protocols import (
     RangefinderError,
     Reading,
     escape_bytes,
-    get_protocol,
 )
+from rigkit.rangefinder.protocols import get_protocol
 
 DEFAULT_TIMEOUT_S = 30.0
 """Default wait for one reading, in seconds (time to aim and fire by hand)."""

@@ -29,12 +29,10 @@ from types import TracebackType
 from urllib.parse import parse_qsl, urlsplit
 
 from rigkit.errors import InputError
-from rigkit.rangefinder.protocols import (
-    TRUPULSE_UNITS,
+from rigkit.rangefinder.trupulse import TRUPULSE_UNITS, encode_trupulse_hv, trupulse_sentence
+from rigkit.rangefinder.vectronix import (
     VECTRONIX_TARGETS,
     additive_checksum,
-    encode_trupulse_hv,
-    trupulse_sentence,
     vectronix_frame,
     vectronix_range_field,
 )

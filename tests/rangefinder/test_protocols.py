@@ -32,7 +32,8 @@ from rigkit.rangefinder import (
     trupulse_sentence,
     vectronix_frame,
 )
-from rigkit.rangefinder.protocols import FOOT_M, YARD_M, vectronix_range_field
+from rigkit.rangefinder.trupulse import FOOT_M, YARD_M
+from rigkit.rangefinder.vectronix import vectronix_range_field
 
 T0 = 1_700_000_000.0
 
