@@ -3,11 +3,19 @@ result on it, computed once per test session."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from rigkit.capture.comparisons import (
+    LOG_NAME,
+    STATUS_NO_ESTIMATE,
+    STATUS_OK,
+    Comparison,
+    append_rows,
+)
 from rigkit.pipeline import DepthResult, RigGeometry, estimate_depth
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import SceneTruth, SynthParams, generate_scene, load_scene, write_scene
@@ -60,7 +68,7 @@ def processed_session(synth_session: Path, tmp_path_factory: pytest.TempPathFact
     """``synth_session`` after one ``rigkit process`` run (read-only, like it)."""
     import shutil
 
-    from rigkit.process import process_session
+    from rigkit.batch import process_session
 
     out = tmp_path_factory.mktemp("processed") / "seed-3"
     shutil.copytree(synth_session, out)
@@ -84,3 +92,61 @@ def copy_session(
         edit(data)
         (out / "session.yaml").write_text(yaml.safe_dump(data))
     return out
+
+
+# --------------------------------------------------------------------------- comparisons
+
+OLD_RUN, NEW_RUN = "20261122T090000Z", "20261123T100000Z"
+
+
+def make_row(
+    target: str,
+    laser: float,
+    error_pct: float,
+    *,
+    session: str = "field-1",
+    run: str = NEW_RUN,
+    status: str = STATUS_OK,
+    sigma: float = 0.5,
+) -> Comparison:
+    ok = status == STATUS_OK
+    estimate = laser * (1 + error_pct / 100) if ok else math.nan
+    return Comparison(
+        run_id=run,
+        time_utc="2026-11-23T10:00:00Z",
+        session=session,
+        target=target,
+        u=1000.0,
+        v=800.0,
+        window_px=31,
+        laser_range_m=laser,
+        laser_readings=3 if math.isfinite(laser) else 0,
+        laser_spread_m=0.05,
+        estimate_range_m=estimate,
+        estimate_sigma_m=sigma if ok else math.nan,
+        valid_fraction=0.95 if ok else 0.0,
+        error_m=estimate - laser,
+        error_pct=100 * (estimate - laser) / laser,
+        status=status,
+    )
+
+
+def make_log(root: Path, name: str, *runs: list[Comparison]) -> Path:
+    """A session folder whose log gets one append per run, as `rigkit process` does."""
+    folder = root / name
+    folder.mkdir(parents=True, exist_ok=True)
+    for rows in runs:
+        append_rows(folder / LOG_NAME, rows)
+    return folder
+
+
+@pytest.fixture
+def two_runs(tmp_path: Path) -> Path:
+    old = [make_row(t, 300.0, 2.0, run=OLD_RUN) for t in ("T1", "T2")]
+    new = [
+        make_row("T1", 250.0, 1.0),
+        make_row("T2", 350.0, -2.0),
+        make_row("T3", 450.0, 0.5),
+        make_row("T4", 420.0, 0.0, status=STATUS_NO_ESTIMATE),
+    ]
+    return make_log(tmp_path, "field-1", old, new)

@@ -83,8 +83,8 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.errors import InputError
     from rigkit.pipeline import estimate_depth
     from rigkit.pipeline.images import load_grey
-    from rigkit.preview import colorize, depth_range
     from rigkit.progress import Progress
+    from rigkit.reporting.previews import colorize, depth_range
 
     rig = rig_geometry(args)
     if args.out.suffix != ".npy":

@@ -39,8 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rigkit.batch import auto_jobs, new_run_id, run_batch
     from rigkit.errors import InputError
-    from rigkit.process import auto_jobs, new_run_id, run_batch
 
     paths = list(dict.fromkeys(args.sessions))
     if args.jobs is not None and args.jobs < 1:

@@ -4,24 +4,21 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    import numpy as np
 
 EXAMPLE = """example:
   rigkit report capture/field-1 capture/field-2 --out out/report
   rigkit report capture/field-1 --out out/field-1-history --all-runs
+  rigkit report capture/field-1 --out out/paper --format png,svg,pdf
 
 reads SESSION/comparisons.csv (written by rigkit process) of each session, by default
 only the newest run, and writes into DIR: comparisons.csv (the rows reported),
-report.txt (the text printed), estimate_vs_laser.png and error_vs_range.png, staged in a
-temporary folder and moved into place together.
+report.txt (the text printed), estimate_vs_laser.png and error_vs_range.png (and .svg,
+.pdf with --format), staged in a temporary folder and moved into place together.
 error = estimate - laser (positive: the estimate is too far), in % of the laser range.
 """
 
-#: The files written into --out, in the order they are listed.
-OUTPUTS = ("comparisons.csv", "report.txt", "estimate_vs_laser.png", "error_vs_range.png")
+#: The plots, by file stem; each is written in every --format.
+PLOTS = ("estimate_vs_laser", "error_vs_range")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,34 +46,46 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="report every run in the logs, not only each session's newest",
     )
+    p.add_argument(
+        "--format",
+        default="png",
+        metavar="FORMATS",
+        help="plot file formats, comma-separated, of png, svg, pdf (default png)",
+    )
     p.set_defaults(func=run)
+
+
+def _formats(text: str) -> list[str]:
+    from rigkit.errors import InputError
+    from rigkit.reporting.plots import FORMATS
+
+    formats = list(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    unknown = [f for f in formats if f not in FORMATS]
+    if unknown or not formats:
+        raise InputError(f"--format {text}: expected one or more of {', '.join(FORMATS)}")
+    return formats
 
 
 def run(args: argparse.Namespace) -> int:
     from rigkit.capture.comparisons import csv_text
     from rigkit.errors import InputError
-    from rigkit.report import (
-        collect,
-        format_text,
-        plot_error_vs_range,
-        plot_estimate_vs_laser,
-        summarize,
-    )
+    from rigkit.reporting.plots import plot_error_vs_range, plot_estimate_vs_laser, render
+    from rigkit.reporting.summary import collect, format_text, summarize
 
     if not args.sessions:
         raise InputError("no session folders given (e.g. rigkit report capture/field-1 --out DIR)")
+    formats = _formats(args.format)
     _check_out(args.out, args.sessions)
     rows = collect(args.sessions, all_runs=args.all_runs)
     text = format_text(rows, summarize(rows))
-    files: dict[str, str | np.ndarray] = {
-        "comparisons.csv": csv_text(rows),
-        "report.txt": text,
-        "estimate_vs_laser.png": plot_estimate_vs_laser(rows),
-        "error_vs_range.png": plot_error_vs_range(rows),
-    }
+    files: dict[str, str | bytes] = {"comparisons.csv": csv_text(rows), "report.txt": text}
+    for stem, plot in zip(PLOTS, (plot_estimate_vs_laser, plot_error_vs_range), strict=True):
+        figure = plot(rows)
+        for fmt in formats:
+            files[f"{stem}.{fmt}"] = render(figure, fmt)
     _write_all(args.out, files)
     print(text, end="")
-    print(f"wrote {', '.join(str(args.out / name) for name in OUTPUTS)}")
+    print(f"wrote {', '.join(str(args.out / name) for name in files)}")
     return 0
 
 
@@ -93,7 +102,7 @@ def _check_out(out: Path, sessions: list[Path]) -> None:
             raise InputError(f"--out {out}: is a session folder (its log would be replaced)")
 
 
-def _write_all(out: Path, files: dict[str, str | np.ndarray]) -> None:
+def _write_all(out: Path, files: dict[str, str | bytes]) -> None:
     """All report files at once (:func:`rigkit.core.files.write_together`); a folder that
     cannot be created or written is a one-line error naming --out."""
     from rigkit.core.files import write_together

@@ -10,17 +10,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rigkit.capture import Target, load_session
-from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
-from rigkit.cli import main
-from rigkit.core.files import recover_folder
-from rigkit.errors import InputError
-from rigkit.process import (
+from rigkit.batch import (
     auto_jobs,
     compare_target,
     process_session,
     run_batch,
 )
+from rigkit.capture import Target, load_session
+from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
+from rigkit.cli import main
+from rigkit.core.files import recover_folder
+from rigkit.errors import InputError
 from tests.conftest import copy_session
 
 

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import yaml
 
+from rigkit.batch import process_session
 from rigkit.capture import add_frame, add_target, create_session, load_session
 from rigkit.capture.comparisons import LOG_NAME, read_rows
 from rigkit.errors import InputError
-from rigkit.process import process_session
 from rigkit.synth import generate_scene
 from rigkit.synth.session import rig_for_scene
 from tests.conftest import SMALL
