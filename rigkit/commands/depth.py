@@ -80,18 +80,21 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from rigkit.core.files import write_together
+    from rigkit.core.progress import Progress
     from rigkit.errors import InputError
     from rigkit.pipeline import estimate_depth
     from rigkit.pipeline.images import load_grey
-    from rigkit.progress import Progress
     from rigkit.reporting.previews import colorize, depth_range
 
     rig = rig_geometry(args)
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
     left, right, back = (load_grey(p) for p in (args.left, args.right, args.back))
-    progress = Progress("depth", args.quiet)
-    result = estimate_depth(left, right, back, rig, progress=lambda s, f: progress(s, f))
+    task = args.left.name
+    with Progress("depth", [task], quiet=args.quiet) as progress:
+        result = estimate_depth(
+            left, right, back, rig, progress=lambda stage, f: progress.update(task, f, stage)
+        )
 
     out = args.out
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
-
-from rigkit.progress import Progress
+from typing import Any
 
 EXAMPLE = """example:
   rigkit synth out/scene-7 --seed 7                      # paper protocol, 4608x3456, 6 deg, 300 m
@@ -73,8 +72,9 @@ def _rig_settings(path: Path) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.errors import InputError
-    from rigkit.synth import SynthParams, generate_scene, write_scene
+    from rigkit.core.progress import Progress
+    from rigkit.synth import SynthParams, generate_scene
+    from rigkit.synth.io import VIEWS
 
     d = SynthParams()
     settings: dict[str, float] = {
@@ -106,7 +106,20 @@ def run(args: argparse.Namespace) -> int:
     )
     scene = generate_scene(params, args.seed)
     t0 = time.perf_counter()
-    progress = Progress("synth", args.quiet)
+    with Progress("synth", VIEWS, quiet=args.quiet) as progress:
+        what = _write(args, scene, progress)
+    print(
+        f"wrote {what} {args.out_dir} ({params.width}x{params.height}, "
+        f"f={params.focal_px:.1f} px, seed {args.seed}) in {time.perf_counter() - t0:.1f} s"
+    )
+    return 0
+
+
+def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
+    """Render ``scene`` as a scene folder or a session; what was written, in words."""
+    from rigkit.errors import InputError
+    from rigkit.synth import write_scene
+
     if args.session:
         from rigkit.synth.session import write_synthetic_session
 
@@ -120,8 +133,4 @@ def run(args: argparse.Namespace) -> int:
     else:
         write_scene(scene, args.out_dir, progress)
         what = "scene"
-    print(
-        f"wrote {what} {args.out_dir} ({params.width}x{params.height}, "
-        f"f={params.focal_px:.1f} px, seed {args.seed}) in {time.perf_counter() - t0:.1f} s"
-    )
-    return 0
+    return what
