@@ -6,6 +6,7 @@ import math
 import textwrap
 from collections.abc import Sequence
 
+from rigkit.core.tables import render_table
 from rigkit.rig.budget import RELATIVE_ROTATION_DEG, RigCheck, affine_residual_px
 from rigkit.rig.optics import fov_deg
 from rigkit.rig.profile import CAMERA_ROLES, RigProfile
@@ -207,10 +208,6 @@ def _warnings(check: RigCheck) -> str:
 
 
 def _table(header: Sequence[tuple[str, str]], rows: Sequence[Sequence[str]]) -> str:
-    """Right-aligned columns under a two-line header (name, unit)."""
-    lines = [[name for name, _ in header], [unit for _, unit in header], *rows]
-    widths = [max(len(line[i]) for line in lines) for i in range(len(header))]
-    return "\n".join(
-        "  " + "  ".join(cell.rjust(width) for cell, width in zip(line, widths, strict=True))
-        for line in lines
-    )
+    """Right-aligned columns under a two-line header (name, unit), indented by two."""
+    names = [f"{name}\n{unit}" for name, unit in header]
+    return render_table(names, rows, indent=2, rule=False)

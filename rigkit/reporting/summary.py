@@ -28,6 +28,7 @@ from rigkit.capture.comparisons import (
     read_rows,
 )
 from rigkit.core.files import write_text
+from rigkit.core.tables import render_table
 from rigkit.errors import InputError
 
 #: Bucket edges by laser range, metres: <100, 100-200, ..., 400-500, >=500.
@@ -190,22 +191,6 @@ def _share_text(share: float, n: int) -> str:
     return f"{round(share * n)}/{n}"
 
 
-def _table(header: Sequence[str], lines: Sequence[Sequence[str]], left: Iterable[int]) -> list[str]:
-    """Fixed-width columns: those whose index is in ``left`` left-aligned, the rest right."""
-    left_set = set(left)
-    widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(header)]
-
-    def fmt(cells: Sequence[str]) -> str:
-        parts = [
-            c.ljust(w) if i in left_set else c.rjust(w)
-            for i, (c, w) in enumerate(zip(cells, widths, strict=True))
-        ]
-        return "  ".join(parts).rstrip()
-
-    head = fmt(header)
-    return [head, "-" * len(head), *(fmt(line) for line in lines)]
-
-
 def _several_runs(rows: Sequence[Comparison]) -> bool:
     runs: dict[str, set[str]] = {}
     for row in rows:
@@ -237,7 +222,7 @@ def format_rows(rows: Sequence[Comparison]) -> str:
         )
     if not lines:
         return "no comparisons"
-    return "\n".join(_table(header, lines, [*range(left), len(header) - 1]))
+    return render_table(header, lines, left=[*range(left), len(header) - 1])
 
 
 def _failed_text(s: Stats) -> str:
@@ -287,7 +272,7 @@ def format_buckets(buckets: Sequence[Bucket]) -> str:
         )
     if not lines:
         return "no comparisons with a laser range"
-    return "\n".join(_table(header, lines, left=[0]))
+    return render_table(header, lines, left=[0])
 
 
 def _outlier_lines(rows: Sequence[Comparison]) -> list[str]:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from rigkit.capture import RESULTS_DIR
+from rigkit.core.tables import render_table
 from rigkit.errors import InputError
 from rigkit.synth.io import SceneTruth, load_scene
 
@@ -124,36 +125,31 @@ def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[
 
 
 def _pct(x: float) -> str:
-    return "   -  " if math.isnan(x) else f"{100 * x:6.2f}"
+    return "-" if math.isnan(x) else f"{100 * x:.2f}"
 
 
 def format_table(rows: Sequence[Metrics]) -> str:
-    """A table in the style of the paper's Table 1, one line per scene and a mean line."""
-    head = (
-        f"{'scene':<20} {'<0.5%':>7} {'<1%':>7} {'<2%':>7} {'<3%':>7} {'density':>8} {'bias%':>7}"
-    )
-    lines = [head, "-" * len(head)]
+    """A table in the style of the paper's Table 1: one line per scene (percentages of
+    judged pixels), the mean and the worst scene, then why any scene failed."""
+    header = ["scene", "<0.5%", "<1%", "<2%", "<3%", "density", "bias%"]
+    lines: list[list[str] | None] = []
     for m in rows:
         if m.failed:
-            lines.append(f"{m.scene:<20} FAILED: {m.reason}")
+            lines.append([m.scene, "FAILED", *["-"] * 5])
             continue
-        lines.append(
-            f"{m.scene:<20} {_pct(m.under_0_5):>7} {_pct(m.under_1):>7} {_pct(m.under_2):>7} "
-            f"{_pct(m.under_3):>7} {_pct(m.density):>8} {100 * m.median_bias:+7.3f}"
-        )
+        values = [m.under_0_5, m.under_1, m.under_2, m.under_3, m.density]
+        lines.append([m.scene, *(_pct(v) for v in values), f"{100 * m.median_bias:+.3f}"])
     ok = [m for m in rows if not m.failed]
-    lines.append("-" * len(head))
     if ok:
         mean = {k: float(np.mean([getattr(m, k) for m in ok])) for k in _FIELDS}
-        worst1 = min(m.under_1 for m in ok)
-        lines.append(
-            f"{'mean':<20} {_pct(mean['under_0_5']):>7} {_pct(mean['under_1']):>7} "
-            f"{_pct(mean['under_2']):>7} {_pct(mean['under_3']):>7} {_pct(mean['density']):>8} "
-            f"{100 * mean['median_bias']:+7.3f}"
-        )
-        lines.append(f"{'worst scene <1%':<20} {_pct(worst1):>7}")
-    lines.append(f"failures: {len(rows) - len(ok)} of {len(rows)} scenes")
-    return "\n".join(lines)
+        lines.append(None)
+        lines.append(["mean", *(_pct(mean[k]) for k in _FIELDS[:-1]),
+                      f"{100 * mean['median_bias']:+.3f}"])
+        lines.append(["worst scene <1%", "", _pct(min(m.under_1 for m in ok)), *[""] * 4])
+    text = [render_table(header, lines, left=[0])]
+    text += [f"{m.scene}: FAILED: {m.reason}" for m in rows if m.failed]
+    text.append(f"failures: {len(rows) - len(ok)} of {len(rows)} scenes")
+    return "\n".join(text)
 
 
 _FIELDS = ("under_0_5", "under_1", "under_2", "under_3", "density", "median_bias")
