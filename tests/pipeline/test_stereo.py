@@ -1,0 +1,50 @@
+"""Hole filling in the stereo disparity (rigkit.pipeline.stereo.fill_holes)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigkit.pipeline.stereo import fill_holes
+
+NAN = np.nan
+
+
+def _row(*values: float) -> np.ndarray:
+    return np.array([values], np.float32)
+
+
+def test_a_narrow_gap_takes_the_farther_neighbour() -> None:
+    # Foreground (disparity 30) left of the gap, background (20) right of it: the occluded
+    # pixels belong to the background, the smaller disparity.
+    disp = _row(30, 30, NAN, NAN, NAN, 20, 20)
+    filled, mask = fill_holes(disp, max_gap=3)
+    assert filled.tolist() == [[30, 30, 20, 20, 20, 20, 20]]
+    assert mask.tolist() == [[False, False, True, True, True, False, False]]
+    # The same with the background on the left.
+    filled, _ = fill_holes(_row(12.5, NAN, 40), max_gap=3)
+    assert filled.tolist() == [[12.5, 12.5, 40]]
+
+
+def test_wider_gaps_stay_empty() -> None:
+    disp = _row(30, NAN, NAN, NAN, NAN, 20)
+    filled, mask = fill_holes(disp, max_gap=3)
+    assert np.isnan(filled[0, 1:5]).all() and not mask.any()
+    assert fill_holes(disp, max_gap=4)[1].sum() == 4  # exactly max_gap is filled
+
+
+def test_gaps_touching_the_border_stay_empty() -> None:
+    disp = _row(NAN, NAN, 25, 25, NAN)
+    filled, mask = fill_holes(disp, max_gap=5)
+    assert np.isnan(filled[0, [0, 1, 4]]).all() and not mask.any()
+    assert np.isnan(fill_holes(_row(NAN, NAN, NAN), max_gap=5)[0]).all()  # nothing valid
+
+
+def test_rows_are_independent_and_the_input_is_kept() -> None:
+    disp = np.array([[10, NAN, 10], [NAN, 7, 7], [5, NAN, 9]], np.float32)
+    before = disp.copy()
+    filled, mask = fill_holes(disp, max_gap=1)
+    assert np.array_equal(filled, np.array([[10, 10, 10], [NAN, 7, 7], [5, 5, 9]], np.float32),
+                          equal_nan=True)
+    assert mask.tolist() == [[False, True, False], [False, False, False], [False, True, False]]
+    assert np.array_equal(disp, before, equal_nan=True)
+    assert filled.dtype == np.float32
