@@ -24,10 +24,10 @@ import numpy as np
 import yaml
 from eval_synthetic import seed_list  # this folder is on sys.path when run as a script
 
-from rigkit.capture import is_session, load_session
-from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
 from rigkit.batch import auto_jobs, run_batch
 from rigkit.batch.pool import BASE_BYTES, BYTES_PER_PIXEL
+from rigkit.capture import is_session, load_session
+from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
 from rigkit.reporting.summary import format_text, summarize
 from rigkit.synth import SynthParams, generate_scene, write_scene
 from rigkit.synth.session import session_from_rendered
