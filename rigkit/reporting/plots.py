@@ -165,6 +165,22 @@ def _label(ax: Axes, x: float, y: float, text: str, above: bool, left: bool = Fa
     )
 
 
+def _bands(
+    ax: Axes, xs: list[float], edges: Callable[[float], tuple[list[float], list[float]]]
+) -> None:
+    """The 3 % and 1 % bands at ``xs``: ``edges(fraction)`` gives their lower and upper
+    y values. Each is a fill under the grid with dashed edge lines above it (the grid
+    would otherwise hide an edge that falls on a grid line)."""
+    for pct, fill, edge in ((LOOSE_PCT, FILL_LOOSE, BAND_LOOSE),
+                            (TIGHT_PCT, FILL_TIGHT, BAND_TIGHT)):
+        lower, upper = edges(pct / 100)
+        band = ax.fill_between(xs, lower, upper, facecolor=fill, edgecolor=edge, linewidth=0,
+                               zorder=1, label=f"+/-{pct:g} %")
+        band.set_gid(f"band-{pct:g}")
+        for ys in (lower, upper):
+            ax.plot(xs, ys, color=edge, linestyle="--", linewidth=1, zorder=1.8)
+
+
 def _legend(ax: Axes) -> None:
     ax.legend(loc="best", fontsize=9, framealpha=0.9, ncols=2)
 
@@ -182,13 +198,7 @@ def plot_estimate_vs_laser(
     _titles(fig, ax, title, _subtitle(rows, len(usable)), xlabel, ylabel)
     a, b = _range_axis(usable)
     line = [a, b]
-    for pct, fill, edge in ((LOOSE_PCT, FILL_LOOSE, BAND_LOOSE), (TIGHT_PCT, FILL_TIGHT,
-                                                                   BAND_TIGHT)):
-        k = pct / 100
-        band = ax.fill_between(line, [a * (1 - k), b * (1 - k)], [a * (1 + k), b * (1 + k)],
-                               color=fill, edgecolor=edge, linestyle="--", linewidth=1,
-                               zorder=1, label=f"+/-{pct:g} %")
-        band.set_gid(f"band-{pct:g}")
+    _bands(ax, line, lambda k: ([a * (1 - k), b * (1 - k)], [a * (1 + k), b * (1 + k)]))
     (centre,) = ax.plot(line, line, color=INK, linewidth=2, zorder=2, label="estimate = laser")
     centre.set_gid("centre-line")
     _scatter(ax, usable, _colours(usable),
@@ -243,11 +253,7 @@ def plot_error_vs_range(
     lo, hi = _widen(min(ranges), max(ranges))
     pad = 0.05 * (hi - lo)
     xa, xb = lo - pad, hi + pad
-    for pct, fill, edge in ((LOOSE_PCT, FILL_LOOSE, BAND_LOOSE), (TIGHT_PCT, FILL_TIGHT,
-                                                                   BAND_TIGHT)):
-        band = ax.fill_between([xa, xb], [-pct, -pct], [pct, pct], color=fill, edgecolor=edge,
-                               linestyle="--", linewidth=1, zorder=1, label=f"+/-{pct:g} %")
-        band.set_gid(f"band-{pct:g}")
+    _bands(ax, [xa, xb], lambda k: ([-100 * k] * 2, [100 * k] * 2))
     (centre,) = ax.plot([xa, xb], [0.0, 0.0], color=INK, linewidth=2, zorder=2,
                         label="zero error")
     centre.set_gid("centre-line")
