@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from rigkit.errors import InputError, PipelineError
+from rigkit.evaluate import depth_metrics, visible_in_right
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.depth import triangulate_z
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.rectify import apply_homography
-from rigkit.synth.evaluate import depth_metrics, visible_in_right
 
 
 def _true_correspondences(truth, view: str, n: int = 4000, seed: int = 0):
