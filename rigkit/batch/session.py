@@ -37,7 +37,7 @@ from rigkit.capture.session import (
 )
 from rigkit.core.files import Content, replace_folder
 from rigkit.errors import InputError
-from rigkit.pipeline import RigGeometry, estimate_depth
+from rigkit.pipeline import estimate_depth
 from rigkit.reporting.previews import preview_set
 
 LOCK_FILE = ".lock"
@@ -116,9 +116,10 @@ def _process_locked(
     report("reading frames", 0.02)
     left, right, back = load_frames(session)
     report("reading frames", 0.1)
-    rig = RigGeometry(profile.focal_px, profile.baseline_lr.value_m, profile.baseline_lb.value_m)
+    rig = profile.geometry()
     result = estimate_depth(
-        left, right, back, rig, progress=lambda stage, f: report(stage, 0.1 + 0.8 * f)
+        left, right, back, rig, progress=lambda stage, f: report(stage, 0.1 + 0.8 * f),
+        settings=profile.pipeline_settings(),
     )
     rows = tuple(
         compare_target(session, target, result.depth, result.sigma, run_id)
@@ -134,7 +135,8 @@ def _process_locked(
             for pos in POSITIONS
         },
         "rig": {"name": profile.name, "focal_px": rig.focal_px,
-                "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m},
+                "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
+                "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},
         "warnings": list(warnings),
         **result.diagnostics(),
     }

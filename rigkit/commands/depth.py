@@ -35,31 +35,44 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--focal-px", type=float, help="focal length, px (overrides --rig)")
     p.add_argument("--baseline-lr", type=float, help="left-right baseline C_lr, m")
     p.add_argument("--baseline-lb", type=float, help="left-back distance C_lb along z, m")
+    p.add_argument("--distortion", metavar="K1[,K2[,P1,P2[,K3]]]",
+                   help="lens distortion, OpenCV model on normalised coordinates about the "
+                   "image centre (overrides --rig's camera.distortion)")
     p.add_argument("--out", type=Path, required=True, help="depth map to write (.npy)")
     p.add_argument("--preview", action="store_true", help="also write colour-mapped PNGs")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=run)
 
 
-def rig_geometry(args: argparse.Namespace):  # -> RigGeometry
-    """f and baselines from --rig, overridden by explicit flags; all three required."""
-    from rigkit.errors import InputError
-    from rigkit.pipeline import RigGeometry
+def rig_geometry(args: argparse.Namespace):  # -> (RigGeometry, PipelineSettings)
+    """f, baselines and lens from --rig, overridden by explicit flags (f and both
+    baselines required); the pipeline settings from --rig's ``pipeline:`` section."""
+    from dataclasses import asdict
 
-    values: dict[str, float | None] = {
+    from rigkit.errors import InputError
+    from rigkit.geometry import distortion_coefficients
+    from rigkit.pipeline import RigGeometry
+    from rigkit.pipeline.settings import PipelineSettings
+
+    values: dict[str, object] = {
         "focal_px": None,
         "baseline_lr_m": None,
         "baseline_lb_m": None,
     }
+    settings = PipelineSettings()
     if args.rig is not None:
         from rigkit.rig import load_rig
 
         profile = load_rig(args.rig)
-        values = {
-            "focal_px": profile.focal_px,
-            "baseline_lr_m": profile.baseline_lr.value_m,
-            "baseline_lb_m": profile.baseline_lb.value_m,
-        }
+        values = asdict(profile.geometry())
+        settings = profile.pipeline_settings()
+    if args.distortion is not None:
+        try:
+            values["distortion"] = distortion_coefficients(
+                [float(x) for x in args.distortion.split(",")]
+            )
+        except ValueError as exc:
+            raise InputError(f"--distortion {args.distortion!r}: {exc}") from None
     for key, flag in (
         ("focal_px", "focal_px"),
         ("baseline_lr_m", "baseline_lr"),
@@ -73,7 +86,7 @@ def rig_geometry(args: argparse.Namespace):  # -> RigGeometry
             "missing " + ", ".join(missing) + ": give --rig PROFILE or "
             "--focal-px, --baseline-lr and --baseline-lb"
         )
-    return RigGeometry(**values)  # type: ignore[arg-type]
+    return RigGeometry(**values), settings  # type: ignore[arg-type]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,14 +99,15 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.pipeline.images import load_grey
     from rigkit.reporting.previews import colorize, depth_range
 
-    rig = rig_geometry(args)
+    rig, settings = rig_geometry(args)
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
     left, right, back = (load_grey(p) for p in (args.left, args.right, args.back))
     task = args.left.name
     with Progress("depth", [task], quiet=args.quiet) as progress:
         result = estimate_depth(
-            left, right, back, rig, progress=lambda stage, f: progress.update(task, f, stage)
+            left, right, back, rig, progress=lambda stage, f: progress.update(task, f, stage),
+            settings=settings,
         )
 
     out = args.out
@@ -109,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
             "focal_px": rig.focal_px,
             "baseline_lr_m": rig.baseline_lr_m,
             "baseline_lb_m": rig.baseline_lb_m,
+            "distortion_k1_k2_p1_p2_k3": list(rig.distortion),
         },
         **result.diagnostics(),
     }

@@ -12,6 +12,8 @@ EXAMPLE = """example:
   rigkit synth out/small --seed 1 --width 1152 --height 864
   rigkit synth out/vehicle --seed 3 --rig rigs/vehicle-2m.yaml   # size, f, baselines from a rig
   rigkit synth capture/synth-5 --seed 5 --width 1152 --height 864 --session --targets 6
+  rigkit synth out/field-9 --seed 9 --field                 # sky, haze, shimmer, exposure...
+  rigkit synth out/field-9b --seed 9 --field --burst 5 --distortion 0.47
 
 flags given explicitly override the rig profile; without --rig the defaults are the paper's.
 """
@@ -42,6 +44,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-pp-offset", type=float, default=30.0, help="principal point offset, px")
     p.add_argument("--relief", type=float, default=0.03, help="terrain depth range / distance")
     p.add_argument("--noise", type=float, default=1.5, help="read noise sigma, 8-bit DN")
+    field = p.add_argument_group(
+        "field conditions",
+        "what a real capture adds; --field turns on a realistic set (sky 0.25, haze 1500 m, "
+        "gain 0.1, offset 6 DN, vignetting 0.25, shimmer 0.3 px over 1 %% of the width); "
+        "each flag below overrides it",
+    )
+    field.add_argument("--field", action="store_true", help="a realistic field capture")
+    field.add_argument("--sky", type=float, help="fraction of the height above the skyline")
+    field.add_argument("--haze", type=float, help="haze extinction length, m (0 = clear)")
+    field.add_argument("--gain-jitter", type=float, help="per-camera gain difference (fraction)")
+    field.add_argument("--offset-jitter", type=float, help="per-frame black-level offset, DN")
+    field.add_argument("--vignetting", type=float, help="brightness lost at the corner (fraction)")
+    field.add_argument("--shimmer", type=float, help="heat shimmer, RMS px per axis")
+    field.add_argument("--shimmer-corr", type=float, help="shimmer correlation length, px")
+    field.add_argument("--distortion", metavar="K1[,K2[,P1,P2[,K3]]]",
+                       help="lens distortion (OpenCV model, normalised coordinates), all views")
+    field.add_argument("--burst", type=int, help="frames per camera position (default 1)")
     p.add_argument("--session", action="store_true",
                    help="write a capture session (raw/, session.yaml, rig.yaml) with "
                    "simulated laser targets, ready for `rigkit process`")
@@ -104,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
         relief=args.relief,
         noise_dn=args.noise,
     )
+    params = _field_conditions(args, params)
     scene = generate_scene(params, args.seed)
     t0 = time.perf_counter()
     with Progress("synth", VIEWS, quiet=args.quiet) as progress:
@@ -113,6 +133,41 @@ def run(args: argparse.Namespace) -> int:
         f"f={params.focal_px:.1f} px, seed {args.seed}) in {time.perf_counter() - t0:.1f} s"
     )
     return 0
+
+
+_FIELD_FLAGS = {
+    "sky": "sky",
+    "haze": "haze_m",
+    "gain_jitter": "gain_jitter",
+    "offset_jitter": "offset_jitter_dn",
+    "vignetting": "vignetting",
+    "shimmer": "shimmer_px",
+    "shimmer_corr": "shimmer_corr_px",
+    "burst": "burst",
+}
+
+
+def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
+    """``params`` with --field's preset and the field flags given applied."""
+    from dataclasses import replace
+
+    from rigkit.errors import InputError
+    from rigkit.geometry import distortion_coefficients
+    from rigkit.synth import field_params
+
+    if args.field:
+        params = field_params(params)
+    changes: dict[str, Any] = {
+        name: getattr(args, flag) for flag, name in _FIELD_FLAGS.items()
+        if getattr(args, flag) is not None
+    }
+    if args.distortion is not None:
+        try:
+            values = [float(x) for x in args.distortion.split(",")]
+            changes["distortion"] = distortion_coefficients(values)
+        except ValueError as exc:
+            raise InputError(f"--distortion {args.distortion!r}: {exc}") from None
+    return replace(params, **changes)
 
 
 def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:

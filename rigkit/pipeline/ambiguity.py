@@ -25,13 +25,15 @@ from scipy.optimize import least_squares
 
 from rigkit.errors import PipelineError
 from rigkit.geometry import rotvec_to_matrix
+from rigkit.pipeline.checks import check_magnification
 from rigkit.pipeline.depth import rectified_rays, triangulate_z
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, apply_homography, scaling
+from rigkit.pipeline.settings import PipelineSettings
 
 MIN_MATCHES = 30
 MAX_BACK_SIDE = 0.5  # back camera's sideways offset, as a fraction of C_lr, still plausible
-EDGE_WINDOW = 7  # px of the stereo grid: matches this close to a depth edge are not used
+DEFAULT = PipelineSettings()
 
 
 @dataclass(frozen=True)
@@ -40,7 +42,9 @@ class Ambiguity:
 
     ``beta`` (rad): yaw correction of the right camera; ``offset_px`` ~ ``f * beta``,
     the paper's disparity offset q at the image centre; ``offset_sigma_px``: its
-    standard error; ``back_rotvec`` (3,) left->back rotation (rad); ``back_offset_m``:
+    standard error (the larger of the least-squares one and a spatial jackknife's, which
+    also sees errors shared by neighbouring matches, such as heat shimmer);
+    ``back_rotvec`` (3,) left->back rotation (rad); ``back_offset_m``:
     the back camera's fitted (x right, y down) offset from the left optical axis;
     ``matches_used``/``inliers``: left/back matches with a disparity / within 1 px;
     ``rms_px``: reprojection RMS of the inliers in the back view.
@@ -57,7 +61,7 @@ class Ambiguity:
 
 
 def _sample_disparity(
-    disparity: np.ndarray, scale: float, rect: Rectification, pts: np.ndarray
+    disparity: np.ndarray, scale: float, rect: Rectification, pts: np.ndarray, edge_window: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rectified full-res column and disparity (full-res px) at left pixels ``pts``.
     Disparities near depth edges or holes (spread over 0.5 px in a window) are NaN."""
@@ -65,7 +69,7 @@ def _sample_disparity(
     xs = apply_homography(scaling(scale), xr)
     m = xs.astype(np.float32).reshape(-1, 1, 2)
     d = cv2.remap(disparity, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderValue=np.nan)
-    k = np.ones((EDGE_WINDOW, EDGE_WINDOW), np.uint8)
+    k = np.ones((edge_window, edge_window), np.uint8)
     filled = np.nan_to_num(disparity, nan=-1e6)
     spread = cv2.dilate(filled, k) - cv2.erode(np.nan_to_num(disparity, nan=1e6), k)
     s = cv2.remap(spread, m[..., 0], m[..., 1], cv2.INTER_NEAREST, borderValue=np.inf)
@@ -95,12 +99,7 @@ def _residuals(p, rect, xr, d, pb, c_lr, c_lb):
 def _initial(m: Matches, rect: Rectification, xr, d, c_lr: float, c_lb: float) -> np.ndarray:
     A = m.affine[:, :2]
     s = float(np.sqrt(abs(np.linalg.det(A))))
-    if s >= 1.0:
-        raise PipelineError(
-            f"left/back: the back view shows the scene {s:.4f}x as large as the left view "
-            "(expected < 1: is the back image taken behind the left camera?)"
-        )
-    z0 = c_lb * s / (1.0 - s)
+    z0 = check_magnification(s, c_lb)
     a, b = rectified_rays(rect, xr[:, 0], d)
     # triangulate_z: z = c_lr / (a - tan(atan(b) + beta)); solve for z = z0.
     beta0 = float(np.median(np.arctan(a - c_lr / z0) - np.arctan(b)))
@@ -118,13 +117,17 @@ def remove_ambiguity(
     rect: Rectification,
     baseline_lr_m: float,
     baseline_lb_m: float,
+    settings: PipelineSettings = DEFAULT,
 ) -> Ambiguity:
-    """Fit the right camera's yaw correction from left/back ``matches``.
+    """Fit the right camera's yaw correction from left/back ``matches`` (ideal pinhole
+    pixels, see :mod:`rigkit.pipeline.lens`).
 
     disparity: (h, w) float32 on the ``disparity_scale``-resized rectified canvas, px,
     ``x_left - x_right``, NaN = unknown.
     """
-    xr, d = _sample_disparity(disparity, disparity_scale, rect, matches.left)
+    xr, d = _sample_disparity(
+        disparity, disparity_scale, rect, matches.left, settings.edge_window_px
+    )
     ok = np.isfinite(d)
     if ok.sum() < MIN_MATCHES:
         raise PipelineError(
@@ -133,6 +136,10 @@ def remove_ambiguity(
         )
     xr, d, pb = xr[ok], d[ok], matches.other[ok]
     fit, inl = _fit(matches, rect, xr, d, pb, baseline_lr_m, baseline_lb_m)
+    args = (rect, xr[inl], d[inl], pb[inl], baseline_lr_m, baseline_lb_m)
+    jack_sigma = _jackknife_beta_sigma(
+        fit.x, args, matches.left[ok][inl], settings.jackknife_blocks
+    )
     side = float(fit.x[4])
     if abs(side) > MAX_BACK_SIDE * baseline_lr_m:
         # The back camera stands behind the left one. If it fits about C_lr to the
@@ -149,6 +156,7 @@ def remove_ambiguity(
         beta_sigma = float(np.sqrt(cov[0, 0]))
     except np.linalg.LinAlgError:
         beta_sigma = float("inf")
+    beta_sigma = max(beta_sigma, jack_sigma)
     f = rect.K[0, 0]
     return Ambiguity(
         beta=float(fit.x[0]),
@@ -162,9 +170,37 @@ def remove_ambiguity(
     )
 
 
+def _jackknife_beta_sigma(
+    p: np.ndarray, args: tuple, left_px: np.ndarray, blocks: int
+) -> float:
+    """Standard error of ``beta`` by the delete-one-block jackknife over a
+    ``blocks`` x ``blocks`` grid of the left image (Kuensch 1989's block idea): errors
+    that neighbouring matches share - heat shimmer moves whole patches - are invisible
+    to the least-squares covariance, which takes every residual as independent.
+    left_px: (N, 2) left pixels of the matches in ``args``."""
+    lo, hi = left_px.min(axis=0), left_px.max(axis=0) + 1e-9
+    cell = np.floor((left_px - lo) / (hi - lo) * blocks).astype(int)
+    label = cell[:, 1] * blocks + cell[:, 0]
+    rect, xr, d, pb, c_lr, c_lb = args
+    betas = []
+    for b in np.unique(label):
+        keep = label != b
+        if keep.sum() < MIN_MATCHES:
+            continue
+        sub = (rect, xr[keep], d[keep], pb[keep], c_lr, c_lb)
+        betas.append(least_squares(_residuals, p, args=sub, x_scale=_SCALES, max_nfev=20).x[0])
+    n = len(betas)
+    if n < 2:
+        return 0.0
+    return float(np.sqrt((n - 1) / n * np.sum((np.array(betas) - np.mean(betas)) ** 2)))
+
+
 def _rms(res: np.ndarray) -> float:
     """RMS reprojection distance (px) of stacked (u, v) residuals."""
     return float(np.sqrt(np.mean(res**2) * 2))
+
+
+_SCALES = np.array([1e-4, 1e-3, 1e-3, 1e-3, 0.1, 0.1])  # typical sizes of the parameters
 
 
 def _fit(matches, rect, xr, d, pb, c_lr: float, c_lb: float):
@@ -172,7 +208,7 @@ def _fit(matches, rect, xr, d, pb, c_lr: float, c_lb: float):
     inliers, inlier mask over the given matches)."""
     args = (rect, xr, d, pb, c_lr, c_lb)
     p0 = _initial(matches, rect, xr, d, c_lr, c_lb)
-    scales = np.array([1e-4, 1e-3, 1e-3, 1e-3, 0.1, 0.1])
+    scales = _SCALES
     fit = least_squares(_residuals, p0, args=args, x_scale=scales)
     # A redescending loss: a wrong disparity moves a point in the back view by little,
     # so outliers are small and a bounded-influence (L1-like) loss would still be biased.

@@ -15,6 +15,7 @@ from collections.abc import Iterator
 import cv2
 import numpy as np
 
+from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, scaling
 
 CHUNK_ROWS = 512
@@ -43,16 +44,19 @@ def triangulate_z(
     return np.where(z > 0, z, np.nan)
 
 
-def _left_grid(rect: Rectification, scale: float, shape: tuple[int, int]) -> Iterator[tuple]:
-    """For row chunks of the original left image: (rows, xs, ys, uf) where (xs, ys) are
-    the pixels' positions on the ``scale``-resized rectified canvas (float32, for
-    cv2.remap) and ``uf`` their full-resolution rectified column (float64)."""
+def _left_grid(
+    rect: Rectification, scale: float, shape: tuple[int, int], lens: Lens | None
+) -> Iterator[tuple]:
+    """For row chunks of the original (recorded) left image: (rows, xs, ys, uf) where
+    (xs, ys) are the pixels' positions on the ``scale``-resized rectified canvas
+    (float32, for cv2.remap) and ``uf`` their full-resolution rectified column
+    (float64). ``lens`` maps recorded to ideal pixels first (None: pinhole)."""
     H, W = shape
     M = scaling(scale) @ rect.H_left
     Hl = rect.H_left
-    u = np.arange(W, dtype=np.float64)
+    lens = lens or Lens(float(rect.K[0, 0]), (W, H))
     for r0 in range(0, H, CHUNK_ROWS):
-        uu, vv = np.meshgrid(u, np.arange(r0, min(r0 + CHUNK_ROWS, H), dtype=np.float64))
+        uu, vv = lens.ideal_rows(r0, min(r0 + CHUNK_ROWS, H))
         q = M[:, 0, None, None] * uu + M[:, 1, None, None] * vv + M[:, 2, None, None]
         xs, ys = (q[0] / q[2]).astype(np.float32), (q[1] / q[2]).astype(np.float32)
         uf = (Hl[0, 0] * uu + Hl[0, 1] * vv + Hl[0, 2]) / (Hl[2, 0] * uu + Hl[2, 1] * vv + Hl[2, 2])
@@ -66,27 +70,32 @@ def depth_map(
     beta: float,
     baseline_m: float,
     shape: tuple[int, int],
+    lens: Lens | None = None,
 ) -> np.ndarray:
-    """Depth of every pixel of the original left image.
+    """Depth of every pixel of the original (recorded) left image.
 
     disparity: (h, w) float32, px of the ``disparity_scale``-resized rectified canvas,
     ``x_left - x_right``, NaN = unknown. shape: (H, W) of the original left image.
     Returns (H, W) float32, metres, z in the left camera frame, NaN where unknown.
     """
     out = np.empty(shape, np.float32)
-    for rows, xs, ys, uf in _left_grid(rect, disparity_scale, shape):
+    for rows, xs, ys, uf in _left_grid(rect, disparity_scale, shape, lens):
         d = cv2.remap(disparity, xs, ys, cv2.INTER_LINEAR, borderValue=np.nan)
         out[rows] = triangulate_z(rect, uf, d / disparity_scale, beta, baseline_m)
     return out
 
 
 def mask_to_left(
-    mask: np.ndarray, scale: float, rect: Rectification, shape: tuple[int, int]
+    mask: np.ndarray,
+    scale: float,
+    rect: Rectification,
+    shape: tuple[int, int],
+    lens: Lens | None = None,
 ) -> np.ndarray:
     """Resample a bool mask of the ``scale``-resized rectified canvas to the original
     left grid (nearest neighbour). Returns (H, W) bool."""
     out = np.zeros(shape, bool)
     src = mask.astype(np.uint8)
-    for rows, xs, ys, _ in _left_grid(rect, scale, shape):
+    for rows, xs, ys, _ in _left_grid(rect, scale, shape, lens):
         out[rows] = cv2.remap(src, xs, ys, cv2.INTER_NEAREST, borderValue=0) > 0
     return out

@@ -4,31 +4,48 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from rigkit.errors import InputError
+from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
+from rigkit.pipeline.checks import check_distinct, check_parallax
 from rigkit.pipeline.depth import depth_map, mask_to_left
 from rigkit.pipeline.features import Matches, match_views
+from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, footprints, pseudo_rectify, warp_pair
-from rigkit.pipeline.stereo import SGBM, StereoMatcher, fill_holes, restrict_to_footprints
+from rigkit.pipeline.settings import PipelineSettings
+from rigkit.pipeline.stereo import (
+    SGBM,
+    StereoMatcher,
+    fill_holes,
+    restrict_to_footprints,
+    surface_mask,
+)
 
 
 @dataclass(frozen=True)
 class RigGeometry:
-    """The only calibration the method needs: focal length (px) and two baselines (m)."""
+    """The only calibration the method needs: focal length (px) and two baselines (m),
+    plus the lens distortion where it is known (OpenCV ``k1, k2, p1, p2, k3`` on
+    normalised coordinates about the image centre; zeros = none)."""
 
     focal_px: float
     baseline_lr_m: float
     baseline_lb_m: float
+    distortion: Distortion = NO_DISTORTION
 
     def __post_init__(self) -> None:
         for name in ("focal_px", "baseline_lr_m", "baseline_lb_m"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0:
                 raise InputError(f"{name} must be a positive number, got {value!r}")
+        try:
+            object.__setattr__(self, "distortion", distortion_coefficients(self.distortion))
+        except ValueError as exc:
+            raise InputError(f"distortion: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -39,25 +56,31 @@ class DepthResult:
     NaN where there is no estimate. sigma: (H, W) float32, metres, one standard error of
     that depth (disparity noise and offset uncertainty combined; larger where a hole was
     filled from its background neighbour); NaN where no depth. filled: (H, W) bool,
-    pixels whose depth comes from hole filling rather than a match.
+    pixels whose depth comes from hole filling rather than a match. no_surface: (H, W)
+    bool, pixels with nothing to match (sky, blank or clipped areas): NaN in depth.
     """
 
     depth: np.ndarray
     sigma: np.ndarray
     filled: np.ndarray
+    no_surface: np.ndarray
     rectification: Rectification
     ambiguity: Ambiguity
     disparity: np.ndarray
     disparity_scale: float
     matches_lr: int
     matches_lb: int
+    settings: PipelineSettings = field(default_factory=PipelineSettings)
+    distortion: Distortion = NO_DISTORTION
     timings_s: dict[str, float] = field(default_factory=dict)
 
     def diagnostics(self) -> dict[str, object]:
-        """JSON-ready summary: warps, offset, match counts, timings."""
+        """JSON-ready summary: settings, warps, offset, match counts, timings."""
         r, a = self.rectification, self.ambiguity
         valid = np.isfinite(self.depth)
         return {
+            "settings": self.settings.as_dict(),
+            "distortion_k1_k2_p1_p2_k3": list(self.distortion),
             "disparity_offset_px": a.offset_px,
             "disparity_offset_sigma_px": a.offset_sigma_px,
             "right_yaw_correction_rad": a.beta,
@@ -81,6 +104,7 @@ class DepthResult:
                 "R_rect": r.R_rect.tolist(),
             },
             "density": float(valid.mean()),
+            "no_surface_fraction": float(self.no_surface.mean()),
             "depth_range_m": [float(np.nanmin(self.depth)), float(np.nanmax(self.depth))]
             if valid.any()
             else None,
@@ -106,18 +130,19 @@ def estimate_depth(
     back: np.ndarray,
     rig: RigGeometry,
     matcher: StereoMatcher | None = None,
-    stereo_scale: float = 0.5,
-    fill_max_gap: int = 64,
+    stereo_scale: float | None = None,
+    fill_max_gap: int | None = None,
     progress: Progress | None = None,
+    settings: PipelineSettings | None = None,
 ) -> DepthResult:
     """Dense metric depth of the left view from three (H, W) float32 grey images.
 
-    ``stereo_scale``: resolution of stereo matching relative to the input (0.5 = half,
-    as in the paper). ``fill_max_gap``: widest hole (px at the stereo resolution) filled
-    from its background neighbour; 0 disables. ``progress(stage, fraction)`` is called
-    as stages finish.
+    ``settings`` (default :class:`PipelineSettings`) holds every tunable number;
+    ``stereo_scale`` and ``fill_max_gap`` override the two most used ones.
+    ``progress(stage, fraction)`` is called as stages finish.
     """
     _check_sizes(left, right, back)
+    s = _settings(settings, stereo_scale, fill_max_gap)
     matcher = matcher or SGBM()
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -130,52 +155,81 @@ def estimate_depth(
         clock = now
         report(stage, frac)
 
-    m_lr: Matches = match_views(left, right, "left/right")
-    m_lb: Matches = match_views(left, back, "left/back")
+    size = (left.shape[1], left.shape[0])
+    lens = Lens(rig.focal_px, size, rig.distortion)
+    m_lr = _ideal(match_views(left, right, "left/right", settings=s), lens)
+    m_lb = _ideal(match_views(left, back, "left/back", settings=s), lens)
+    check_distinct(left, right, back)  # after matching: a blank scene says so first
     lap("matching", 0.2)
-    rect = pseudo_rectify(m_lr, rig.focal_px, (left.shape[1], left.shape[0]))
-    rl, rr = warp_pair(left, right, rect, stereo_scale)
+    rect = pseudo_rectify(m_lr, rig.focal_px, size, s)
+    check_parallax(m_lr, rect)
+    scale = s.stereo_scale
+    rl, rr = warp_pair(left, right, rect, scale, lens)
     lap("rectification", 0.35)
     lo, hi = rect.disparity_range
-    rng = (int(np.floor(lo * stereo_scale)), int(np.ceil(hi * stereo_scale)))
+    rng = (int(np.floor(lo * scale)), int(np.ceil(hi * scale)))
     disparity = matcher(rl, rr, rng)
-    left_fp, right_fp = footprints(rect, (left.shape[1], left.shape[0]), stereo_scale)
-    disparity = restrict_to_footprints(disparity, left_fp, right_fp)
+    left_fp, right_fp = footprints(rect, size, scale, lens=lens)
+    surface = surface_mask(rl, left_fp, s.min_texture, s.texture_window_px)
+    disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
     lap("stereo", 0.8)
     amb = remove_ambiguity(
-        m_lb, disparity, stereo_scale, rect, rig.baseline_lr_m, rig.baseline_lb_m
+        m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
     )
     lap("ambiguity", 0.85)
-    dense, holes = fill_holes(disparity, fill_max_gap)
-    # Holes filled across a footprint edge would extrapolate into unseen ground.
-    dense = restrict_to_footprints(dense, left_fp, right_fp)
+    dense, holes = fill_holes(disparity, s.fill_max_gap_px)
+    # Holes filled across a footprint edge would extrapolate into unseen ground, and
+    # a hole with no surface in it (sky between two buildings) is no occlusion.
+    dense = restrict_to_footprints(np.where(surface, dense, np.nan), left_fp, right_fp)
     holes &= np.isfinite(dense)
-    depth = depth_map(dense, stereo_scale, rect, amb.beta, rig.baseline_lr_m, left.shape)
-    filled = mask_to_left(holes, stereo_scale, rect, left.shape)
-    sigma = _depth_sigma(depth, filled, rig, amb, stereo_scale)
+    depth = depth_map(dense, scale, rect, amb.beta, rig.baseline_lr_m, left.shape, lens)
+    filled = mask_to_left(holes, scale, rect, left.shape, lens)
+    no_surface = mask_to_left(~surface & left_fp, scale, rect, left.shape, lens)
+    sigma = _depth_sigma(depth, filled, rig, amb, s)
     lap("depth", 1.0)
     return DepthResult(
         depth=depth,
         sigma=sigma,
         filled=filled,
+        no_surface=no_surface,
         rectification=rect,
         ambiguity=amb,
         disparity=disparity,
-        disparity_scale=stereo_scale,
+        disparity_scale=scale,
         matches_lr=len(m_lr.left),
         matches_lb=len(m_lb.left),
+        settings=s,
+        distortion=rig.distortion,
         timings_s=timings,
     )
 
 
-STEREO_NOISE_PX = 0.25  # typical sub-pixel matching error at the matching resolution
-FILLED_NOISE_PX = 2.0  # a filled hole is only as good as its neighbour's surface
+def _settings(
+    settings: PipelineSettings | None, stereo_scale: float | None, fill_max_gap: int | None
+) -> PipelineSettings:
+    s = settings or PipelineSettings()
+    changes: dict[str, float | int] = {}
+    if stereo_scale is not None:
+        changes["stereo_scale"] = stereo_scale
+    if fill_max_gap is not None:
+        changes["fill_max_gap_px"] = fill_max_gap
+    try:
+        return replace(s, **changes)  # type: ignore[arg-type]
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
+def _ideal(m: Matches, lens: Lens) -> Matches:
+    """``m`` with both sides moved from recorded to ideal pinhole pixels."""
+    if lens.identity:
+        return m
+    return replace(m, left=lens.to_ideal(m.left), other=lens.to_ideal(m.other))
 
 
 def _depth_sigma(
-    depth: np.ndarray, filled: np.ndarray, rig: RigGeometry, amb: Ambiguity, scale: float
+    depth: np.ndarray, filled: np.ndarray, rig: RigGeometry, amb: Ambiguity, s: PipelineSettings
 ) -> np.ndarray:
     """First-order error: dz = z^2 / (f C_lr) * sqrt(dd_stereo^2 + dd_offset^2)."""
-    stereo = np.where(filled, FILLED_NOISE_PX, STEREO_NOISE_PX) / scale
+    stereo = np.where(filled, s.filled_noise_px, s.stereo_noise_px) / s.stereo_scale
     dd = np.hypot(stereo, amb.offset_sigma_px).astype(np.float32)
     return depth.astype(np.float32) ** 2 * dd / np.float32(rig.focal_px * rig.baseline_lr_m)

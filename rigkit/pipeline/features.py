@@ -18,9 +18,10 @@ import cv2
 import numpy as np
 
 from rigkit.errors import PipelineError
+from rigkit.pipeline.settings import PipelineSettings
 
-COARSE_SIDE = 1024
 MIN_COARSE_MATCHES = 12
+DEFAULT = PipelineSettings()
 
 
 @dataclass(frozen=True)
@@ -54,8 +55,10 @@ def _to_u8(img: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
-def _coarse_affine(left: np.ndarray, other: np.ndarray, what: str) -> tuple[np.ndarray, int]:
-    scale = min(1.0, COARSE_SIDE / max(left.shape))
+def _coarse_affine(
+    left: np.ndarray, other: np.ndarray, what: str, coarse_side: int
+) -> tuple[np.ndarray, int]:
+    scale = min(1.0, coarse_side / max(left.shape))
     size = (round(left.shape[1] * scale), round(left.shape[0] * scale))
     small = [_to_u8(cv2.resize(im, size, interpolation=cv2.INTER_AREA)) for im in (left, other)]
     sift = cv2.SIFT_create(nfeatures=4000)  # type: ignore[attr-defined]
@@ -97,25 +100,46 @@ def _corners(left: np.ndarray, n_points: int) -> np.ndarray:
     return pts.reshape(-1, 2) * 2 + 0.5
 
 
+def match_brightness(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``image`` scaled by a smooth gain field so that its local mean brightness (over
+    ~5 % of the image side) is ``reference``'s. Exposure and vignetting differ between
+    frames; Lucas-Kanade assumes brightness constancy, and a brightness slope across its
+    window biases the shift it finds. Only the mean is matched: equalising local
+    contrast as well would follow the texture itself and distort it.
+    Both (H, W) float32, aligned; pixels outside ``image`` (0) are left 0.
+    """
+    s = 0.05 * max(image.shape)
+    inside = (image > 0).astype(np.float32)
+    w = cv2.GaussianBlur(inside, (0, 0), s) + 1e-6
+    m_img = cv2.GaussianBlur(image * inside, (0, 0), s) / w
+    m_ref = cv2.GaussianBlur(reference * inside, (0, 0), s) / w
+    return (image * (m_ref / np.maximum(m_img, 1e-3))).astype(np.float32)
+
+
 def match_views(
-    left: np.ndarray, other: np.ndarray, what: str = "left/other", n_points: int = 3000
+    left: np.ndarray,
+    other: np.ndarray,
+    what: str = "left/other",
+    n_points: int | None = None,
+    settings: PipelineSettings = DEFAULT,
 ) -> Matches:
     """Sub-pixel matches from ``left`` to ``other`` ((H, W) float32 grey images).
 
-    ``what`` names the pair in error messages. Raises PipelineError when the views
-    do not match (textureless, unrelated, or too few reliable tracks).
+    ``what`` names the pair in error messages; ``n_points`` overrides
+    ``settings.n_points``. Raises PipelineError when the views do not match
+    (textureless, unrelated, or too few reliable tracks).
     """
-    A, n_coarse = _coarse_affine(left, other, what)
+    A, n_coarse = _coarse_affine(left, other, what, settings.coarse_side_px)
     warped = cv2.warpAffine(
         other, A, (left.shape[1], left.shape[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
     )
-    l8, w8 = _to_u8(left), _to_u8(warped)
-    p0 = _corners(left, n_points).astype(np.float32)
+    l8, w8 = _to_u8(left), _to_u8(match_brightness(warped, left))
+    p0 = _corners(left, n_points or settings.n_points).astype(np.float32)
     p1, st1 = _track(l8, w8, p0)
     p0b, st2 = _track(w8, l8, p1)  # and back, to check each track
     h, w = left.shape
     fb = np.linalg.norm(p0b - p0, axis=1)
-    ok = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (fb < 0.1)
+    ok = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (fb < settings.fb_max_px)
     ok &= (p1[:, 0] > 10) & (p1[:, 0] < w - 11) & (p1[:, 1] > 10) & (p1[:, 1] < h - 11)
     if ok.sum() < 50:
         raise PipelineError(f"{what}: only {int(ok.sum())} reliable sub-pixel matches (need 50)")

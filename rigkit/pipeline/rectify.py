@@ -30,9 +30,11 @@ from scipy.optimize import least_squares
 from rigkit.errors import PipelineError
 from rigkit.geometry import intrinsics, rot_z, rotvec_to_matrix
 from rigkit.pipeline.features import Matches
+from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.settings import PipelineSettings
 
 ROLL_PRIOR_RAD = np.radians(2.0)
-DISPARITY_MARGIN = 24  # px added on both sides of the matched disparity range
+DEFAULT = PipelineSettings()
 
 
 @dataclass(frozen=True)
@@ -92,9 +94,15 @@ def _initial_params(m: Matches, f: float) -> np.ndarray:
     return np.array([0.0, np.arctan(dv / f), -np.arctan(du / f), -content_turn])
 
 
-def pseudo_rectify(matches: Matches, f: float, image_size: tuple[int, int]) -> Rectification:
-    """Fit rectifying rotations to left/right ``matches`` for focal length ``f`` (px)
-    and original image ``image_size`` (w, h)."""
+def pseudo_rectify(
+    matches: Matches,
+    f: float,
+    image_size: tuple[int, int],
+    settings: PipelineSettings = DEFAULT,
+) -> Rectification:
+    """Fit rectifying rotations to left/right ``matches`` (ideal pinhole pixels, see
+    :mod:`rigkit.pipeline.lens`) for focal length ``f`` (px) and original image
+    ``image_size`` (w, h)."""
     w, h = image_size
     K = intrinsics(f, (w - 1) / 2, (h - 1) / 2)
     pl, pr = matches.left, matches.other
@@ -124,7 +132,8 @@ def pseudo_rectify(matches: Matches, f: float, image_size: tuple[int, int]) -> R
     d = apply_homography(Hl, pl[inl])[:, 0] - apply_homography(Hr, pr[inl])[:, 0]
     shift = float(np.round(np.median(d)))
     d_lo, d_hi = np.percentile(d - shift, [0.5, 99.5])
-    rng = (int(np.floor(d_lo)) - DISPARITY_MARGIN, int(np.ceil(d_hi)) + DISPARITY_MARGIN)
+    margin = settings.disparity_margin_px
+    rng = (int(np.floor(d_lo)) - margin, int(np.ceil(d_hi)) + margin)
     T = np.array([[1, 0, shift], [0, 1, 0], [0, 0, 1.0]])
     return Rectification(
         H_left=canvas @ Hl,
@@ -142,38 +151,62 @@ def pseudo_rectify(matches: Matches, f: float, image_size: tuple[int, int]) -> R
 
 
 def warp_pair(
-    left: np.ndarray, right: np.ndarray, rect: Rectification, scale: float = 1.0
+    left: np.ndarray,
+    right: np.ndarray,
+    rect: Rectification,
+    scale: float = 1.0,
+    lens: Lens | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Warp both images onto the rectified canvas, optionally downscaled by ``scale``.
+    """Warp both recorded images onto the rectified canvas, optionally downscaled by
+    ``scale``, through the ``lens`` (None: a distortion-free pinhole).
 
     Returns float32 images of the canvas size times ``scale``; pixels from outside the
     source image are 0.
     """
-    S = scaling(scale)
-    size = (round(rect.size[0] * scale), round(rect.size[1] * scale))
     out = []
     for img, H in ((left, rect.H_left), (right, rect.H_right)):
         if scale != 1.0:
             # Area-average first so the warp does not alias, then one bilinear warp.
             small = (round(img.shape[1] * scale), round(img.shape[0] * scale))
             img = cv2.resize(img, small, interpolation=cv2.INTER_AREA)
-            H = S @ H @ np.linalg.inv(S)
-        out.append(cv2.warpPerspective(img, H, size, flags=cv2.INTER_LINEAR))
+        out.append(_warp(img, H, rect, scale, lens, cv2.INTER_LINEAR))
     return out[0], out[1]
 
 
+def _warp(
+    img: np.ndarray, H: np.ndarray, rect: Rectification, scale: float, lens: Lens | None,
+    interpolation: int,
+) -> np.ndarray:
+    """``img`` (already at ``scale``) onto the ``scale``-resized canvas by the
+    full-resolution homography ``H`` from ideal pixels, through the lens distortion."""
+    S = scaling(scale)
+    size = (round(rect.size[0] * scale), round(rect.size[1] * scale))
+    if lens is None or lens.identity:
+        return cv2.warpPerspective(img, S @ H @ np.linalg.inv(S), size, flags=interpolation)
+    # Each canvas pixel's source: back through the homography to an ideal pixel, then
+    # through the lens to where the camera recorded it.
+    q = np.stack(np.meshgrid(np.arange(size[0]), np.arange(size[1])), axis=-1).reshape(-1, 2)
+    ideal = apply_homography(np.linalg.inv(S @ H), q.astype(np.float64))
+    src = apply_homography(S, lens.to_recorded(ideal)).astype(np.float32)
+    mx, my = src[:, 0].reshape(size[1], size[0]), src[:, 1].reshape(size[1], size[0])
+    return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
 def footprints(
-    rect: Rectification, image_size: tuple[int, int], scale: float, margin: int = 1
+    rect: Rectification,
+    image_size: tuple[int, int],
+    scale: float,
+    margin: int = 1,
+    lens: Lens | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Where the left and right images land on the ``scale``-resized rectified canvas:
     two (h, w) bool masks, eroded by ``margin`` px so matching windows stay inside."""
-    ones = np.full((image_size[1], image_size[0]), 255, np.uint8)
-    S = scaling(scale)
-    size = (round(rect.size[0] * scale), round(rect.size[1] * scale))
+    small = (round(image_size[0] * scale), round(image_size[1] * scale))
+    ones = np.full((small[1], small[0]), 255, np.uint8)
     kernel = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
     masks = []
     for H in (rect.H_left, rect.H_right):
-        m = cv2.warpPerspective(ones, S @ H, size, flags=cv2.INTER_NEAREST)
+        m = _warp(ones, H, rect, scale, lens, cv2.INTER_NEAREST)
         masks.append(cv2.erode(m, kernel) > 0)
     return masks[0], masks[1]
 

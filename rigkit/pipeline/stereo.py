@@ -105,6 +105,58 @@ def restrict_to_footprints(
     return np.where(ok, disp, np.nan).astype(np.float32)
 
 
+def surface_mask(
+    image: np.ndarray, inside: np.ndarray, min_texture: float, window: int
+) -> np.ndarray:
+    """Where ``image`` shows a surface that can be matched: (h, w) bool.
+
+    A pixel has no surface to match when the horizontal contrast in the ``window``
+    around it (RMS of the Sobel x-derivative, scaled to grey levels) is below
+    ``min_texture`` times the image noise at its brightness, or when it is clipped
+    white: sky, haze-blank background, blank walls and blown highlights. Semi-global
+    matching would otherwise spread its neighbours' disparities into them. Islands
+    smaller than the window (noise that happens to pass) are dropped.
+
+    image: (h, w) float32 grey, 0-255; inside: (h, w) bool, where ``image`` has content.
+    """
+    k = (window, window)
+    gx = cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=3) / np.float32(np.sqrt(12.0))
+    contrast = np.sqrt(np.maximum(cv2.boxFilter(gx * gx, -1, k), 0))
+    core = cv2.erode(inside.astype(np.uint8), np.ones(k, np.uint8)) > 0
+    if not core.any():
+        return np.zeros(image.shape, bool)
+    mean = cv2.boxFilter(image, -1, k)
+    noise = _noise_level(image, mean, core, k)
+    clipped = cv2.dilate((image >= 254).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    raw = (contrast >= min_texture * noise) & ~clipped & inside
+    opened = cv2.morphologyEx(raw.astype(np.uint8), cv2.MORPH_OPEN, np.ones(k, np.uint8))
+    return opened > 0
+
+
+def _noise_level(
+    image: np.ndarray, mean: np.ndarray, core: np.ndarray, k: tuple[int, int], bins: int = 12
+) -> np.ndarray:
+    """The image noise (grey levels) as a function of brightness, at every pixel:
+    (h, w) float32. Noise grows with brightness (shot noise), so a single figure
+    under-rates it in a bright sky. Following the lower-envelope idea of Liu et al.
+    (2006), the noise at a brightness is the 5th percentile of the local noise measured
+    with Immerkaer's (1996) Laplacian-difference operator among pixels of that
+    brightness (texture only raises the measure), made non-decreasing in brightness."""
+    lap = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+    local = cv2.boxFilter(np.abs(cv2.filter2D(image, -1, lap)), -1, k)
+    local *= np.float32(np.sqrt(np.pi / 2) / 6)
+    m, n = mean[core], local[core]
+    edges = np.unique(np.percentile(m, np.linspace(0, 100, bins + 1)))
+    centres, levels = [], []
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        sel = (m >= lo) & (m <= hi)
+        if sel.sum() >= 50:
+            centres.append(0.5 * (lo + hi))
+            levels.append(float(np.percentile(n[sel], 5)))
+    levels = np.maximum.accumulate(np.maximum(levels, 0.25))
+    return np.interp(mean, centres, levels).astype(np.float32)
+
+
 def fill_holes(disp: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
     """Fill gaps of at most ``max_gap`` px along rows with the farther (smaller-disparity)
     of the two valid neighbours, as Hirschmueller (2008) does for occlusions: a hole

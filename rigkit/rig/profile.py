@@ -36,6 +36,9 @@ import yaml
 
 from rigkit.core.yamlfile import KeyPath, read_strict_yaml
 from rigkit.errors import InputError
+from rigkit.geometry import NO_DISTORTION, Distortion
+from rigkit.pipeline import RigGeometry
+from rigkit.pipeline.settings import PipelineSettings, setting_names, setting_type
 from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
 
 PROFILE_VERSION = 1
@@ -79,6 +82,7 @@ class CameraSpec:
     focal_tolerance: float
     principal_point_px: tuple[float, float] | None
     focal_given: tuple[str, float] | None = None
+    distortion: Distortion = NO_DISTORTION
 
 
 @dataclass(frozen=True)
@@ -119,6 +123,8 @@ class RigProfile:
     back camera's optical centre relative to the point C_lb behind the left one:
     x positive to the right, y positive up; None if not known.
     ``nominal_range_m`` is the range the rig is designed for, if stated.
+    ``pipeline`` holds the depth pipeline settings the profile overrides (names of
+    :class:`rigkit.pipeline.settings.PipelineSettings`).
     """
 
     name: str
@@ -130,6 +136,29 @@ class RigProfile:
     notes: str
     nominal_range_m: float | None
     source: Path = field(compare=False)
+    pipeline: Mapping[str, float] = field(default_factory=dict, hash=False)
+
+    @property
+    def distortion(self) -> Distortion:
+        """The lens distortion shared by the three cameras; InputError if they differ
+        (the pipeline models one lens)."""
+        values = {cam.distortion for cam in self.cameras.values()}
+        if len(values) > 1:
+            raise InputError(
+                f"{self.source}: cameras: distortion differs between cameras; rigkit "
+                "models one lens for the three views"
+            )
+        return values.pop()
+
+    def geometry(self) -> RigGeometry:
+        """What the depth pipeline needs of the rig: f, C_lr, C_lb and the lens."""
+        return RigGeometry(
+            self.focal_px, self.baseline_lr.value_m, self.baseline_lb.value_m, self.distortion
+        )
+
+    def pipeline_settings(self) -> PipelineSettings:
+        """The pipeline's defaults with this profile's overrides."""
+        return PipelineSettings(**self.pipeline)  # type: ignore[arg-type]
 
     @property
     def focal_px(self) -> float:
@@ -193,7 +222,10 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
     keys = top.mapping(
         data,
         required=("version", "name", "baselines"),
-        optional=("camera", "cameras", "back_offset", "rangefinder", "notes", "nominal_range_m"),
+        optional=(
+            "camera", "cameras", "back_offset", "rangefinder", "notes", "nominal_range_m",
+            "pipeline",
+        ),
     )
     _check_version(keys["version"], top.child("version"))
     baselines = top.child("baselines")
@@ -208,6 +240,7 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
         notes=top.child("notes").text(keys["notes"]) if "notes" in keys else "",
         nominal_range_m=_optional(keys, "nominal_range_m", top, _nominal_range),
         source=path,
+        pipeline=_optional(keys, "pipeline", top, _pipeline) or {},
     )
 
 
@@ -245,7 +278,7 @@ def _camera(value: Any, key: KeyPath) -> CameraSpec:
     keys = key.mapping(
         value,
         required=("model", "resolution", "focal_length"),
-        optional=("sensor_mm", "principal_point_px"),
+        optional=("sensor_mm", "principal_point_px", "distortion"),
     )
     resolution = _resolution(keys["resolution"], key.child("resolution"))
     sensor = _optional(keys, "sensor_mm", key, _sensor)
@@ -271,6 +304,7 @@ def _camera(value: Any, key: KeyPath) -> CameraSpec:
         focal_tolerance=tolerance,
         principal_point_px=principal,
         focal_given=(form, given),
+        distortion=_optional(keys, "distortion", key, _distortion) or NO_DISTORTION,
     )
 
 
@@ -398,6 +432,35 @@ def _rangefinder_offset(value: Any, key: KeyPath) -> tuple[float, float, float]:
     )
 
 
+_DISTORTION_TERMS = ("k1", "k2", "p1", "p2", "k3")
+
+
+def _distortion(value: Any, key: KeyPath) -> Distortion:
+    """``{k1: .., k2: .., p1: .., p2: .., k3: ..}`` (any subset; OpenCV's model on
+    normalised image coordinates about the image centre)."""
+    terms = key.mapping(value, required=(), optional=_DISTORTION_TERMS)
+    k1, k2, p1, p2, k3 = (
+        key.child(t).number(terms.get(t, 0.0), "normalised units") for t in _DISTORTION_TERMS
+    )
+    return (k1, k2, p1, p2, k3)
+
+
+def _pipeline(value: Any, key: KeyPath) -> Mapping[str, float]:
+    """Overrides of :class:`PipelineSettings`, checked by constructing them."""
+    given = key.mapping(value, required=(), optional=setting_names())
+    out: dict[str, float] = {}
+    for name, v in given.items():
+        number = key.child(name).number(v, "the setting's unit")
+        if setting_type(name) is int and not float(number).is_integer():
+            raise key.child(name).error("must be a whole number", v)
+        out[name] = int(number) if setting_type(name) is int else number
+    try:
+        PipelineSettings(**out)  # type: ignore[arg-type]
+    except ValueError as exc:
+        raise key.error(str(exc)) from None
+    return MappingProxyType(out)
+
+
 def _nominal_range(value: Any, key: KeyPath) -> float:
     return key.bounded(value, "m", _MAX_RANGE_M)
 
@@ -426,6 +489,8 @@ def rig_to_dict(profile: RigProfile) -> dict[str, Any]:
         data["rangefinder"] = _rangefinder_to_dict(profile.rangefinder)
     if profile.notes:
         data["notes"] = profile.notes
+    if profile.pipeline:
+        data["pipeline"] = dict(profile.pipeline)
     return data
 
 
@@ -445,6 +510,8 @@ def _camera_to_dict(spec: CameraSpec) -> dict[str, Any]:
     data["focal_length"] = {form: value, "tolerance_fraction": spec.focal_tolerance}
     if spec.principal_point_px is not None:
         data["principal_point_px"] = list(spec.principal_point_px)
+    if spec.distortion != NO_DISTORTION:
+        data["distortion"] = dict(zip(_DISTORTION_TERMS, spec.distortion, strict=True))
     return data
 
 

@@ -39,6 +39,9 @@ class Metrics:
     median_bias: float  # median of (estimate - truth) / truth over estimated pixels
     failed: bool = False
     reason: str = ""
+    # Pixels with no surface at all (sky, empty background) that received a depth, as
+    # a fraction of those pixels; NaN when the scene has none.
+    false_depth: float = math.nan
 
 
 def visible_in_right(truth: SceneTruth) -> np.ndarray:
@@ -80,6 +83,10 @@ def depth_metrics(
     rel = np.abs(est[has] - gt[has]) / gt[has]
     fractions = [float(np.count_nonzero(rel < t)) / n for t in THRESHOLDS]
     bias = float(np.median((est[has] - gt[has]) / gt[has])) if has.any() else math.nan
+    no_surface = ~np.isfinite(truth)
+    false_depth = (
+        float(np.isfinite(estimate[no_surface]).mean()) if no_surface.any() else math.nan
+    )
     return Metrics(
         scene=scene,
         judged_pixels=n,
@@ -89,6 +96,7 @@ def depth_metrics(
         under_2=fractions[2],
         under_3=fractions[3],
         median_bias=bias,
+        false_depth=false_depth,
     )
 
 
@@ -124,6 +132,12 @@ def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[
     return [evaluate_scene(d, find_estimate(depth_dir, d)) for d in scene_dirs]
 
 
+def _mean(values: Sequence[float]) -> float:
+    """Mean of the finite values (NaN marks 'not applicable'); NaN if there are none."""
+    finite = [v for v in values if math.isfinite(v)]
+    return float(np.mean(finite)) if finite else math.nan
+
+
 def _pct(x: float) -> str:
     return "-" if math.isnan(x) else f"{100 * x:.2f}"
 
@@ -131,28 +145,31 @@ def _pct(x: float) -> str:
 def format_table(rows: Sequence[Metrics]) -> str:
     """A table in the style of the paper's Table 1: one line per scene (percentages of
     judged pixels), the mean and the worst scene, then why any scene failed."""
-    header = ["scene", "<0.5%", "<1%", "<2%", "<3%", "density", "bias%"]
+    header = ["scene", "<0.5%", "<1%", "<2%", "<3%", "density", "bias%", "false%"]
     lines: list[list[str] | None] = []
     for m in rows:
         if m.failed:
-            lines.append([m.scene, "FAILED", *["-"] * 5])
+            lines.append([m.scene, "FAILED", *["-"] * 6])
             continue
         values = [m.under_0_5, m.under_1, m.under_2, m.under_3, m.density]
-        lines.append([m.scene, *(_pct(v) for v in values), f"{100 * m.median_bias:+.3f}"])
+        lines.append([m.scene, *(_pct(v) for v in values), f"{100 * m.median_bias:+.3f}",
+                      _pct(m.false_depth)])
     ok = [m for m in rows if not m.failed]
     if ok:
-        mean = {k: float(np.mean([getattr(m, k) for m in ok])) for k in _FIELDS}
+        mean = {k: _mean([getattr(m, k) for m in ok]) for k in _FIELDS}
         lines.append(None)
-        lines.append(["mean", *(_pct(mean[k]) for k in _FIELDS[:-1]),
-                      f"{100 * mean['median_bias']:+.3f}"])
-        lines.append(["worst scene <1%", "", _pct(min(m.under_1 for m in ok)), *[""] * 4])
+        lines.append(["mean", *(_pct(mean[k]) for k in _FIELDS[:-2]),
+                      f"{100 * mean['median_bias']:+.3f}", _pct(mean["false_depth"])])
+        lines.append(["worst scene <1%", "", _pct(min(m.under_1 for m in ok)), *[""] * 5])
     text = [render_table(header, lines, left=[0])]
     text += [f"{m.scene}: FAILED: {m.reason}" for m in rows if m.failed]
     text.append(f"failures: {len(rows) - len(ok)} of {len(rows)} scenes")
     return "\n".join(text)
 
 
-_FIELDS = ("under_0_5", "under_1", "under_2", "under_3", "density", "median_bias")
+_FIELDS = (
+    "under_0_5", "under_1", "under_2", "under_3", "density", "median_bias", "false_depth"
+)
 
 
 def write_csv(rows: Sequence[Metrics], path: Path) -> None:

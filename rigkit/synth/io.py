@@ -2,7 +2,8 @@
 
 Layout of ``SCENE_DIR/`` (documented in docs/synthetic-scenes.md)::
 
-    left.png  right.png  back.png        8-bit grey images
+    left.png  right.png  back.png        8-bit grey images (the first frame of each position)
+    left-2.png ... back-N.png            further frames of a burst (``burst`` > 1)
     scene.yaml                           rig, cameras (K, R, C), generator parameters
     ground_truth/depth_left.npy          (H, W) float32, metres, z in the left camera, NaN = no hit
     ground_truth/depth_right.npy         same for the right camera (for visibility)
@@ -21,7 +22,7 @@ import yaml
 
 from rigkit.core.files import write_npy, write_png, write_text
 from rigkit.errors import InputError
-from rigkit.geometry import Camera
+from rigkit.geometry import NO_DISTORTION, Camera, distortion_coefficients
 from rigkit.synth.render import expose, render_view
 from rigkit.synth.scene import Scene
 
@@ -41,7 +42,13 @@ def _camera_dict(cam: Camera, euler: tuple[float, float, float]) -> dict[str, ob
         "R_world_to_camera": [[float(x) for x in row] for row in cam.R],
         "center_m": [float(x) for x in cam.C],
         "euler_xyz_deg": list(euler),
+        "distortion_k1_k2_p1_p2_k3": list(cam.distortion),
     }
+
+
+def frame_name(view: str, frame: int) -> str:
+    """File name of ``frame`` (0-based) of a burst at position ``view``."""
+    return f"{view}.png" if frame == 0 else f"{view}-{frame + 1}.png"
 
 
 def write_scene(
@@ -55,7 +62,9 @@ def write_scene(
         t0 = time.perf_counter()
         cb = (lambda frac, n=name: progress(n, frac)) if progress else None
         radiance, depth = render_view(scene, name, cb)
-        write_png(out_dir / f"{name}.png", expose(scene, name, radiance), compression=3)
+        for k in range(scene.params.burst):
+            image = expose(scene, name, radiance, frame=k)
+            write_png(out_dir / frame_name(name, k), image, compression=3)
         write_npy(out_dir / "ground_truth" / f"depth_{name}.npy", depth)
         timings[name] = time.perf_counter() - t0
     meta = {
@@ -95,6 +104,13 @@ class SceneTruth:
         rendered = self.path / f"{view}.png"
         return rendered if rendered.is_file() else self.path / "raw" / f"{view}.png"
 
+    def frame_paths(self, view: str) -> list[Path]:
+        """Every frame of a burst at ``view`` (just :meth:`image_path` for a single one)."""
+        paths = [self.image_path(view)]
+        while (nxt := paths[0].parent / frame_name(view, len(paths))).is_file():
+            paths.append(nxt)
+        return paths
+
 
 def load_scene(path: str | Path) -> SceneTruth:
     """Read ``scene.yaml`` of a scene folder written by :func:`write_scene`."""
@@ -116,6 +132,9 @@ def load_scene(path: str | Path) -> SceneTruth:
                 C=np.array(c["center_m"], float),
                 width=int(w),
                 height=int(h),
+                distortion=distortion_coefficients(
+                    c.get("distortion_k1_k2_p1_p2_k3", NO_DISTORTION)
+                ),
             )
         return SceneTruth(
             path=path,

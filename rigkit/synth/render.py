@@ -1,9 +1,15 @@
 """Exact ray casting of a :class:`~rigkit.synth.scene.Scene`.
 
-Every pixel centre casts one ray; the nearest hit among the terrain (solved by
-fixed-point iteration to micrometres), the boxes (slab test) and the spheres
-(closed form) gives the depth and the surface point whose texture is looked up.
-A small Gaussian point-spread function and sensor noise are applied in the image.
+Every pixel centre casts one ray (through the lens distortion, when the scene has
+one); the nearest hit among the terrain (solved by fixed-point iteration to
+micrometres, cut away above the skyline), the boxes (slab test) and the spheres
+(closed form) gives the depth and the surface point whose texture is looked up. Rays
+that hit nothing see a smooth sky; haze blends every hit towards the sky's brightness
+with distance.
+
+:func:`expose` turns that radiance into one 8-bit frame: heat shimmer (a smooth random
+displacement field, new in every frame), a small Gaussian point-spread function,
+vignetting, the frame's gain and offset, shot and read noise.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from functools import cache
 import cv2
 import numpy as np
 
-from rigkit.geometry import Camera, euler_to_matrix
+from rigkit.geometry import Camera, euler_to_matrix, undistort
 from rigkit.synth.scene import Box, Scene, Sphere, TextureMap
 
 TERRAIN = 0
@@ -140,13 +146,23 @@ def _object_rect(cam: Camera, corners: np.ndarray) -> tuple[int, int, int, int] 
     uv, z = cam.project(corners)
     if np.any(z <= 0):
         return 0, cam.width, 0, cam.height
-    u0, v0 = np.floor(uv.min(axis=0) - 2).astype(int)
-    u1, v1 = np.ceil(uv.max(axis=0) + 3).astype(int)
+    # Distortion bends straight edges: widen by the most it moves any pixel.
+    margin = 2 + _max_distortion_px(cam)
+    u0, v0 = np.floor(uv.min(axis=0) - margin).astype(int)
+    u1, v1 = np.ceil(uv.max(axis=0) + margin + 1).astype(int)
     u0, v0 = max(u0, 0), max(v0, 0)
     u1, v1 = min(u1, cam.width), min(v1, cam.height)
     if u0 >= u1 or v0 >= v1:
         return None
     return int(u0), int(u1), int(v0), int(v1)
+
+
+def _max_distortion_px(cam: Camera) -> float:
+    """Largest displacement (px) the lens distortion gives a pixel on the image border."""
+    u = np.r_[np.linspace(0, cam.width - 1, 33), np.zeros(33), np.full(33, cam.width - 1)]
+    v = np.r_[np.zeros(33), np.linspace(0, cam.height - 1, 33), np.linspace(0, cam.height - 1, 33)]
+    x, y = undistort((u - cam.K[0, 2]) / cam.f, (v - cam.K[1, 2]) / cam.f, cam.distortion)
+    return float(np.max(np.hypot(x * cam.f + cam.K[0, 2] - u, y * cam.f + cam.K[1, 2] - v)))
 
 
 def _box_corners(box: Box) -> np.ndarray:
@@ -189,6 +205,7 @@ def render_view(
         d = cam.rays(u, v)
         t = _terrain_t(scene, cam.C, d, seed_t[r0:r1].copy(), iters=3)
         x, y = cam.C[0] + t * d[..., 0], cam.C[1] + t * d[..., 1]
+        t = np.where(scene.terrain.above_skyline(x, y), np.inf, t)
         gx, gy = scene.terrain.gradient(x, y)
         normal = np.stack([gx, gy, -np.ones_like(gx)], axis=-1)
         st = np.stack([x, y], axis=-1)
@@ -205,15 +222,18 @@ def render_view(
             normal[win] = np.where(closer[..., None], no, normal[win])
             st[win] = np.where(closer[..., None], sto, st[win])
             sid[win] = np.where(closer, obj.texture, sid[win])
-        albedo = np.empty(t.shape, np.float32)
-        for tex_id in np.unique(sid):
-            m = sid == tex_id
+        hit = np.isfinite(t)
+        albedo = np.zeros(t.shape, np.float32)
+        for tex_id in np.unique(sid[hit]):
+            m = hit & (sid == tex_id)
             albedo[m] = sample_texture(scene.textures[tex_id], st[m][:, 0], st[m][:, 1])
         nn = normal / np.linalg.norm(normal, axis=-1, keepdims=True)
         facing = np.sign(-np.einsum("...i,...i->...", nn, d))[..., None]
         shade = 0.3 + 0.7 * np.clip((nn * facing) @ light, 0, 1)
-        radiance[r0:r1] = albedo * shade
-        depth[r0:r1] = np.where(np.isfinite(t), t, np.nan)  # rays have unit camera-z
+        sky = sky_radiance(d)
+        lit = _haze(scene, albedo * shade, t * np.linalg.norm(d, axis=-1), sky)
+        radiance[r0:r1] = np.where(hit, lit, sky)
+        depth[r0:r1] = np.where(hit, t, np.nan)  # rays have unit camera-z
         done[0] += r1 - r0
         if progress is not None:
             progress(done[0] / H)
@@ -223,10 +243,67 @@ def render_view(
     return radiance, depth
 
 
-def expose(scene: Scene, name: str, radiance: np.ndarray) -> np.ndarray:
-    """Camera response: gain, PSF, shot and read noise, 8-bit quantisation -> (H, W) uint8."""
-    rng = np.random.default_rng([scene.seed, sorted(scene.cameras).index(name)])
-    img = cv2.GaussianBlur(radiance * scene.gains.get(name, 1.0), (0, 0), PSF_SIGMA_PX) * 230.0
-    sigma = np.sqrt(scene.params.noise_dn**2 + 0.05 * np.maximum(img, 0))
+def sky_radiance(d: np.ndarray) -> np.ndarray:
+    """Brightness of a clear sky along world directions ``d`` (..., 3): smooth, brighter
+    towards the horizon (+y is down) and slightly to one side, no texture."""
+    elev = d[..., 1] / d[..., 2]
+    return np.clip(0.80 + 1.2 * elev + 0.3 * d[..., 0] / d[..., 2], 0.55, 0.97).astype(np.float32)
+
+
+def _haze(scene: Scene, radiance: np.ndarray, distance: np.ndarray, sky: np.ndarray) -> np.ndarray:
+    """Koschmieder's law: surface radiance attenuated by exp(-distance / haze_m), plus
+    airlight (the sky's brightness) for what was lost."""
+    if scene.params.haze_m <= 0:
+        return radiance
+    with np.errstate(invalid="ignore"):
+        trans = np.exp(-distance / scene.params.haze_m)
+    return np.where(np.isfinite(trans), radiance * trans + sky * (1 - trans), sky)
+
+
+def shimmer_field(
+    shape: tuple[int, int], rms_px: float, corr_px: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth random displacement field (dx, dy), each (H, W) float32 px with RMS
+    ``rms_px`` and a Gaussian correlation of sigma ``corr_px``: the image shift that
+    turbulence gives each isoplanatic patch at one instant."""
+    h, w = shape
+    step = max(1, int(corr_px / 4))
+    small = (-(-h // step) + 1, -(-w // step) + 1)
+    out = []
+    for _ in range(2):
+        white = rng.standard_normal(small).astype(np.float32)
+        field = cv2.GaussianBlur(white, (0, 0), corr_px / step)
+        field = field * np.float32(rms_px / max(float(field.std()), 1e-12))
+        up = cv2.resize(field, (small[1] * step, small[0] * step), interpolation=cv2.INTER_CUBIC)
+        out.append(up[:h, :w])
+    return out[0], out[1]
+
+
+def expose(scene: Scene, name: str, radiance: np.ndarray, frame: int = 0) -> np.ndarray:
+    """Camera response for one frame: shimmer, PSF, vignetting, gain and offset, shot and
+    read noise, 8-bit quantisation -> (H, W) uint8. ``frame`` numbers the frames of a
+    burst at one position (each gets its own shimmer, offset, gain wobble and noise)."""
+    p = scene.params
+    rng = np.random.default_rng([scene.seed, sorted(scene.cameras).index(name), frame])
+    img = radiance
+    if p.shimmer_px > 0:
+        dx, dy = shimmer_field(img.shape, p.shimmer_px, p.shimmer_corr_px, rng)
+        v, u = np.mgrid[0 : img.shape[0], 0 : img.shape[1]].astype(np.float32)
+        img = cv2.remap(img, u + dx, v + dy, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    gain = scene.gains.get(name, 1.0) * (1.0 + 0.01 * (frame > 0) * rng.standard_normal())
+    img = cv2.GaussianBlur(img, (0, 0), PSF_SIGMA_PX) * np.float32(230.0 * gain)
+    if p.vignetting > 0:
+        img = img * _vignette(img.shape, p.vignetting)
+    img = img + np.float32(rng.uniform(-p.offset_jitter_dn, p.offset_jitter_dn))
+    sigma = np.sqrt(p.noise_dn**2 + 0.05 * np.maximum(img, 0))
     img = img + sigma * rng.standard_normal(img.shape, dtype=np.float32)
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def _vignette(shape: tuple[int, int], loss: float) -> np.ndarray:
+    """(H, W) float32 brightness factor 1 - loss * (r / r_corner)^2."""
+    h, w = shape
+    y, x = np.ogrid[0:h, 0:w]
+    cx, cy = (w - 1) / 2, (h - 1) / 2
+    r2 = ((x - cx) ** 2 + (y - cy) ** 2) / (cx**2 + cy**2)
+    return (1.0 - loss * r2).astype(np.float32)

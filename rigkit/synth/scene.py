@@ -10,16 +10,29 @@ A scene is analytic geometry in the left camera's frame (metres):
 Each surface carries a texture made from a real photograph (``skimage.data``) mixed
 with fine noise, mapped in the surface's own metric coordinates so that all three
 views see the same surface pattern.
+
+What a real capture adds (all off by default, the paper's protocol; on together with
+:func:`field_params`): a skyline with no surface above it and a smooth sky, haze that
+grows with distance, lens distortion (the same lens in the three views), and per frame
+heat shimmer, gain, offset, vignetting and noise, with bursts of several frames per
+position (see :mod:`rigkit.synth.render`).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from rigkit.errors import InputError
-from rigkit.geometry import Camera, euler_to_matrix, focal_from_fov, intrinsics
+from rigkit.geometry import (
+    NO_DISTORTION,
+    Camera,
+    Distortion,
+    euler_to_matrix,
+    focal_from_fov,
+    intrinsics,
+)
 
 
 @dataclass(frozen=True)
@@ -42,6 +55,15 @@ class SynthParams:
     n_spheres: int = 3
     noise_dn: float = 1.5  # sensor read noise, 8-bit digital numbers (sigma)
     gain_jitter: float = 0.04  # per-camera exposure/gain difference (fraction)
+    # What a field capture adds (0 = off):
+    sky: float = 0.0  # fraction of the left image's height above the skyline (no surface)
+    haze_m: float = 0.0  # extinction length: contrast falls as exp(-range / haze_m)
+    offset_jitter_dn: float = 0.0  # per-frame black-level offset, uniform within +-, DN
+    vignetting: float = 0.0  # brightness lost at the image corner (fraction, r^2 falloff)
+    shimmer_px: float = 0.0  # heat shimmer: RMS image displacement per axis, px
+    shimmer_corr_px: float = 40.0  # its correlation length (Gaussian sigma), px
+    distortion: Distortion = NO_DISTORTION  # OpenCV k1, k2, p1, p2, k3 (normalised coords)
+    burst: int = 1  # frames per camera position
 
     def validate(self) -> None:
         checks = {
@@ -55,6 +77,14 @@ class SynthParams:
             "noise_dn": self.noise_dn >= 0,
             "n_boxes": self.n_boxes >= 0,
             "n_spheres": self.n_spheres >= 0,
+            "sky": 0 <= self.sky < 0.8,
+            "haze_m": self.haze_m >= 0,
+            "offset_jitter_dn": self.offset_jitter_dn >= 0,
+            "vignetting": 0 <= self.vignetting < 1,
+            "shimmer_px": 0 <= self.shimmer_px < 20,
+            "shimmer_corr_px": self.shimmer_corr_px > 0,
+            "distortion": len(self.distortion) == 5 and all(np.isfinite(self.distortion)),
+            "burst": 1 <= self.burst <= 50,
         }
         for name, ok in checks.items():
             if not ok:
@@ -63,6 +93,26 @@ class SynthParams:
     @property
     def focal_px(self) -> float:
         return focal_from_fov(self.width, self.hfov_deg)
+
+
+def field_params(base: SynthParams | None = None) -> SynthParams:
+    """``base`` (default: the paper's protocol) with what a realistic field capture has:
+    a skyline with sky above ~25 % of the frame, haze (contrast 0.82 at 300 m),
+    per-frame gain +-10 % and offset +-6 DN, 25 % vignetting at the corner, and heat
+    shimmer of 0.3 px RMS per axis correlated over 1 % of the image width - moderate
+    turbulence over 300 m at ~19 urad per pixel (docs/synthetic-scenes.md). Lens
+    distortion and bursts stay as in ``base``."""
+    base = base or SynthParams()
+    return replace(
+        base,
+        sky=0.25,
+        haze_m=1500.0,
+        gain_jitter=0.10,
+        offset_jitter_dn=6.0,
+        vignetting=0.25,
+        shimmer_px=0.3,
+        shimmer_corr_px=0.01 * base.width,
+    )
 
 
 @dataclass(frozen=True)
@@ -74,6 +124,19 @@ class Terrain:
     waves: tuple[tuple[float, float, float, float], ...]  # (A, kx, ky, phase)
     bumps: tuple[tuple[float, float, float, float], ...]  # (B, x0, y0, sigma)
     texture: int
+    # Skyline y_s(x) = y0 + sum A sin(k x + phase), as (y0, ((A, k, phase), ...)): the
+    # surface ends above it (y < y_s, y down); None = it fills the view.
+    skyline: tuple[float, tuple[tuple[float, float, float], ...]] | None = None
+
+    def above_skyline(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """True where the surface point ``(x, y)`` (m, left frame) is cut away (sky)."""
+        if self.skyline is None:
+            return np.zeros(np.shape(x), bool)
+        y0, waves = self.skyline
+        ys = np.full(np.shape(x), y0)
+        for a, k, ph in waves:
+            ys = ys + a * np.sin(k * x + ph)
+        return y < ys
 
     def z(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         out = self.base + self.slope[0] * x + self.slope[1] * y
@@ -183,9 +246,26 @@ def _cameras(p: SynthParams, rng: np.random.Generator) -> tuple[dict[str, Camera
         K = intrinsics(f, (p.width - 1) / 2 + pp[0], (p.height - 1) / 2 + pp[1])
         # euler_to_matrix gives the camera's orientation (camera -> world); R is its inverse.
         R = euler_to_matrix(*e).T
-        cams[name] = Camera(K=K, R=R, C=np.array(centre), width=p.width, height=p.height)
+        cams[name] = Camera(
+            K=K, R=R, C=np.array(centre), width=p.width, height=p.height, distortion=p.distortion
+        )
         eulers[name] = e
     return cams, eulers
+
+
+def _skyline(
+    p: SynthParams, rng: np.random.Generator, half_w: float, half_h: float
+) -> tuple[float, tuple[tuple[float, float, float], ...]] | None:
+    """A ridge line about ``p.sky`` of the height below the top of the left view."""
+    if p.sky <= 0:
+        return None
+    y0 = -half_h + 2 * half_h * p.sky
+    waves = []
+    for _ in range(4):
+        k = 2 * np.pi / (rng.uniform(0.1, 1.0) * 2 * half_w)
+        amp = float(rng.uniform(0.02, 0.08) * half_h)
+        waves.append((amp, float(k), float(rng.uniform(0, 2 * np.pi))))
+    return float(y0), tuple(waves)
 
 
 def _terrain(p: SynthParams, rng: np.random.Generator, half_w: float) -> Terrain:
@@ -223,6 +303,10 @@ def generate_scene(params: SynthParams, seed: int) -> Scene:
     half_w = params.distance_m * params.width / 2 / f
     half_h = params.distance_m * params.height / 2 / f
     terrain = _terrain(params, rng, half_w)
+    if params.sky > 0:
+        # Its own generator, so that a sky leaves the rest of the seed's scene as it was.
+        sky_rng = np.random.default_rng([seed, 7])
+        terrain = replace(terrain, skyline=_skyline(params, sky_rng, half_w, half_h))
     n_tex = 1 + params.n_boxes + params.n_spheres
     pixel_m = params.distance_m / f
     textures = tuple(

@@ -1,0 +1,68 @@
+"""Refusing captures that cannot give depth, before they give a wrong one.
+
+Depth comes from two differences between the views: the parallax between left and
+right (points at different depths shift by different amounts) and the magnification
+of the back view. A capture without one of them - the same frame given twice, a
+tripod that was not moved - still matches perfectly, and the later stages would turn
+it into a smooth, plausible, wrong depth map. Each check names what is wrong and what
+to redo.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigkit.errors import PipelineError
+from rigkit.pipeline.features import Matches
+from rigkit.pipeline.rectify import Rectification, apply_homography
+
+MIN_PARALLAX_PX = 0.5  # spread (5th-95th percentile) of matched disparities
+MAX_IMPLIED_RANGE_M = 50_000.0  # beyond this, the back view shows no magnification
+
+
+def check_distinct(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:
+    """PipelineError if two positions got the same image (pixel for pixel)."""
+    views = {"left": left, "right": right, "back": back}
+    names = list(views)
+    for i, a in enumerate(names):
+        for b in names[i + 1 :]:
+            if np.array_equal(views[a], views[b]):
+                raise PipelineError(
+                    f"the {a} and {b} images are identical: the same frame was given for "
+                    f"two positions (capture the {b} position again)"
+                )
+
+
+def check_parallax(matches: Matches, rect: Rectification) -> None:
+    """PipelineError if the left/right matches show no parallax: their rectified
+    disparities (``x_left - x_right``) all agree to within noise. A right frame
+    taken from the left position (only turned, or not moved at all) looks like this;
+    so does a scene that is a single plane square to the view, which has no depth
+    relief for the method to measure either."""
+    xl = apply_homography(rect.H_left, matches.left)[:, 0]
+    xr = apply_homography(rect.H_right, matches.other)[:, 0]
+    lo, hi = np.percentile(xl - xr, [5, 95])
+    if hi - lo < MIN_PARALLAX_PX:
+        raise PipelineError(
+            f"no parallax between left and right: the disparities of {len(xl)} matches "
+            f"vary by only {hi - lo:.2f} px (was the right frame taken from the left "
+            "position? move the tripod by C_lr and capture the right position again)"
+        )
+
+
+def check_magnification(scale: float, baseline_lb_m: float) -> float:
+    """The range (m) that the back view's magnification ``scale`` (< 1) implies at
+    C_lb; PipelineError if there is no magnification, or the wrong way round."""
+    if scale >= 1.0:
+        raise PipelineError(
+            f"left/back: the back view shows the scene {scale:.5f}x as large as the left "
+            "view (expected < 1: was the back frame taken behind the left camera?)"
+        )
+    z = baseline_lb_m * scale / (1.0 - scale)
+    if z > MAX_IMPLIED_RANGE_M:
+        raise PipelineError(
+            f"no magnification between left and back: the back view is {scale:.6f}x the "
+            f"left view, a range of {z / 1000:.0f} km at C_lb = {baseline_lb_m} m (was the "
+            "back frame taken from the left position? step back by C_lb and capture again)"
+        )
+    return z
