@@ -114,8 +114,9 @@ def surface_mask(
     around it (RMS of the Sobel x-derivative, scaled to grey levels) is below
     ``min_texture`` times the image noise at its brightness, or when it is clipped
     white: sky, haze-blank background, blank walls and blown highlights. Semi-global
-    matching would otherwise spread its neighbours' disparities into them. Islands
-    smaller than the window (noise that happens to pass) are dropped.
+    matching would otherwise spread its neighbours' disparities into them. The mask is
+    eroded by the window, which drops islands smaller than it (noise that happens to
+    pass) and the half window that the contrast measure spreads beyond an edge.
 
     image: (h, w) float32 grey, 0-255; inside: (h, w) bool, where ``image`` has content.
     """
@@ -129,8 +130,9 @@ def surface_mask(
     noise = _noise_level(image, mean, core, k)
     clipped = cv2.dilate((image >= 254).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     raw = (contrast >= min_texture * noise) & ~clipped & inside
-    opened = cv2.morphologyEx(raw.astype(np.uint8), cv2.MORPH_OPEN, np.ones(k, np.uint8))
-    return opened > 0
+    # The window spreads a textured edge half a window into the blank area beside it;
+    # eroding by the window takes that back, and drops islands smaller than it.
+    return cv2.erode(raw.astype(np.uint8), np.ones(k, np.uint8)) > 0
 
 
 def _noise_level(

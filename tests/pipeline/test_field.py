@@ -1,0 +1,105 @@
+"""The pipeline under field conditions: no depth without a surface, a known lens
+distortion, captures that cannot give depth, and the settings it records."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rigkit.errors import InputError, PipelineError
+from rigkit.pipeline import RigGeometry, estimate_depth
+from rigkit.pipeline.images import load_grey
+from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.settings import PipelineSettings
+from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
+from rigkit.synth.evaluate import depth_metrics, visible_in_right
+
+SMALL = SynthParams(width=960, height=720)
+
+
+def _scene(tmp: Path, name: str, params: SynthParams, seed: int = 3):
+    write_scene(generate_scene(params, seed), tmp / name)
+    truth = load_scene(tmp / name)
+    images = [load_grey(truth.image_path(v)) for v in ("left", "right", "back")]
+    return truth, images
+
+
+@pytest.fixture(scope="module")
+def sky_scene(tmp_path_factory):
+    params = replace(SMALL, sky=0.3, haze_m=1500.0, vignetting=0.25, offset_jitter_dn=6.0,
+                     gain_jitter=0.1)
+    return _scene(tmp_path_factory.mktemp("sky"), "sky", params)
+
+
+def test_no_depth_in_the_sky_and_full_density_on_the_surface(sky_scene) -> None:
+    truth, images = sky_scene
+    rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
+    result = estimate_depth(*images, rig)
+    m = depth_metrics(result.depth, truth.depth("left"), visible_in_right(truth))
+    assert m.false_depth < 0.03  # without the surface mask: ~0.8
+    assert m.density > 0.95
+    # At 960x720 the offset is only good to ~1 % (the magnification signal is small).
+    assert m.under_3 > 0.95 and abs(m.median_bias) < 0.015
+    sky = np.isnan(truth.depth("left"))
+    assert result.no_surface[sky].mean() > 0.9  # flagged, not just empty
+    assert result.diagnostics()["no_surface_fraction"] > 0.1
+
+
+def test_a_given_lens_distortion_is_undone(tmp_path) -> None:
+    # 0.4 % radial scale at the corner of a 4.1 deg field.
+    k1 = 0.004 / ((SMALL.width**2 + SMALL.height**2) / 4 / SMALL.focal_px**2)
+    # One camera at the three positions: one principal point, which the pipeline takes
+    # at the image centre (the distortion's centre too).
+    params = replace(SMALL, distortion=(k1, 0, 0, 0, 0), max_pp_offset_px=0.0)
+    truth, images = _scene(tmp_path, "lens", params)
+    judged = visible_in_right(truth)
+    scores = {}
+    for given in (False, True):
+        rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m,
+                          (k1, 0, 0, 0, 0) if given else (0, 0, 0, 0, 0))
+        result = estimate_depth(*images, rig)
+        scores[given] = depth_metrics(result.depth, truth.depth("left"), judged)
+    assert scores[True].under_3 > 0.9 and abs(scores[True].median_bias) < 0.01
+    assert scores[False].under_3 < 0.1  # not undone, 0.4 % at the corner ruins it
+
+
+def test_lens_maps_are_inverse_and_identity_without_distortion() -> None:
+    pts = np.array([[0.0, 0.0], [959.0, 719.0], [480.0, 100.0]])
+    assert Lens(11000.0, (960, 720)).to_ideal(pts) is pts
+    lens = Lens(11000.0, (960, 720), (3.0, 0.0, 1e-3, 0.0, 0.0))
+    ideal = lens.to_ideal(pts)
+    assert np.abs(ideal - pts).max() > 0.1
+    assert np.allclose(lens.to_recorded(ideal), pts, atol=1e-9)
+    u, v = lens.ideal_rows(0, 720)
+    assert np.allclose(u[719, 959], ideal[1, 0], atol=1e-3)
+
+
+def test_same_frame_at_two_positions_is_refused(images, rig) -> None:
+    with pytest.raises(PipelineError, match="left and back images are identical"):
+        estimate_depth(images["left"], images["right"], images["left"], rig)
+
+
+def test_right_frame_without_parallax_is_refused(images, rig) -> None:
+    # The tripod turned but never moved: the right view is the left one shifted.
+    shifted = np.roll(images["left"], 7, axis=1)
+    with pytest.raises(PipelineError, match="no parallax between left and right"):
+        estimate_depth(images["left"], shifted, images["back"], rig)
+
+
+def test_back_frame_without_magnification_is_refused(images, rig) -> None:
+    shifted = np.roll(images["left"], (3, -4), axis=(0, 1))
+    with pytest.raises(PipelineError, match="no magnification between left and back"):
+        estimate_depth(images["left"], images["right"], shifted, rig)
+
+
+def test_settings_are_recorded_and_validated(result) -> None:
+    recorded = result.diagnostics()["settings"]
+    assert recorded == PipelineSettings().as_dict()
+    assert recorded["stereo_scale"] == 0.5
+    with pytest.raises(ValueError, match="stereo_scale"):
+        PipelineSettings(stereo_scale=2.0)
+    with pytest.raises(InputError, match="distortion"):
+        RigGeometry(40000.0, 2.0, 2.0, (0.1, 0.2, 0.3))  # type: ignore[arg-type]
