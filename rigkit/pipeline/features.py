@@ -108,12 +108,20 @@ def match_brightness(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
     contrast as well would follow the texture itself and distort it.
     Both (H, W) float32, aligned; pixels outside ``image`` (0) are left 0.
     """
-    s = 0.05 * max(image.shape)
+    # The mean over ~5 % of the side is smooth: compute it on a ~256 px copy.
+    h, w = image.shape
+    k = max(1.0, max(h, w) / 256)
+    small = (max(1, round(w / k)), max(1, round(h / k)))
     inside = (image > 0).astype(np.float32)
-    w = cv2.GaussianBlur(inside, (0, 0), s) + 1e-6
-    m_img = cv2.GaussianBlur(image * inside, (0, 0), s) / w
-    m_ref = cv2.GaussianBlur(reference * inside, (0, 0), s) / w
-    return (image * (m_ref / np.maximum(m_img, 1e-3))).astype(np.float32)
+
+    def low_pass(a: np.ndarray) -> np.ndarray:
+        a = cv2.resize(a, small, interpolation=cv2.INTER_AREA)
+        return cv2.GaussianBlur(a, (0, 0), 0.05 * max(small))
+
+    wgt = low_pass(inside) + 1e-6
+    gain = (low_pass(reference * inside) / wgt) / np.maximum(low_pass(image * inside) / wgt, 1e-3)
+    gain = cv2.resize(gain, (w, h), interpolation=cv2.INTER_LINEAR)
+    return (image * gain).astype(np.float32)
 
 
 def match_views(

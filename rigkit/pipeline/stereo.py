@@ -145,8 +145,9 @@ def _noise_level(
     with Immerkaer's (1996) Laplacian-difference operator among pixels of that
     brightness (texture only raises the measure), made non-decreasing in brightness."""
     lap = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
-    local = cv2.boxFilter(np.abs(cv2.filter2D(image, -1, lap)), -1, k)
-    local *= np.float32(np.sqrt(np.pi / 2) / 6)
+    local = cv2.boxFilter(np.abs(cv2.filter2D(image, -1, lap)), -1, k) * np.float32(
+        np.sqrt(np.pi / 2) / 6
+    )
     m, n = mean[core], local[core]
     edges = np.unique(np.percentile(m, np.linspace(0, 100, bins + 1)))
     centres, levels = [], []
@@ -155,8 +156,8 @@ def _noise_level(
         if sel.sum() >= 50:
             centres.append(0.5 * (lo + hi))
             levels.append(float(np.percentile(n[sel], 5)))
-    levels = np.maximum.accumulate(np.maximum(levels, 0.25))
-    return np.interp(mean, centres, levels).astype(np.float32)
+    envelope = np.maximum.accumulate(np.maximum(levels, 0.25))
+    return np.interp(mean, centres, envelope).astype(np.float32)
 
 
 def fill_holes(disp: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
