@@ -1,0 +1,269 @@
+"""On-site checks of a capture as it is taken, frame by frame, at reduced resolution.
+
+What the field TUI (``rigkit field``) shows after every frame, computed here so that any
+front end gets the same answers:
+
+* the frame's EXIF against the frames already taken and the rig profile
+  (:func:`rigkit.capture.checks.check_capture`'s rules for the frames present so far);
+* the same file taken for two positions (identical content);
+* after the right frame: parallax and a plausible rotation. Left and right views of a
+  distant scene differ by a near-similarity (shift, small roll, scale ~1) plus the
+  depth-dependent parallax; a similarity fitted to sub-pixel matches leaves that
+  parallax as residual. No residual means the tripod was not moved (a pure rotation of
+  a telephoto camera is a similarity to a small fraction of a pixel) or the same view
+  was taken twice;
+* after the back frame: its magnification m against the left view, below 1 because the
+  back camera is ``C_lb`` behind, and the range it implies, z = m C_lb / (1 - m) (an
+  object at depth z from the left camera is at z + C_lb from the back one; the paper's
+  Sec. 3.3 resolves the depth ambiguity with this scale).
+
+Sessions currently hold one frame per position; :func:`frames_at` and
+:func:`add_position_frame` are the one place that knows it (a burst replaces the
+position's frame with the newest, every file staying in ``raw/``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from rigkit.capture.actions import add_frame
+from rigkit.capture.checks import check_exif
+from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
+from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
+from rigkit.errors import RigkitError
+from rigkit.pipeline.features import match_views
+from rigkit.rig.profile import RigProfile
+
+CHECK_SIDE_PX = 1024
+"""Longest side of the reduced images the on-site checks work on, px."""
+MIN_PARALLAX_PX = 0.4
+"""Least parallax spread (10th to 90th percentile of the residual), in check-image px, for
+the right view to count as taken from another place: a camera turned on its tripod
+left ~0.2 px (tracking and sensor noise) in synthetic tests, a 2 m move at 300 m 0.75 px
+at 384 px wide and far more at full size."""
+MAX_ROLL_DEG = 10.0
+"""Largest plausible roll between two positions; more means a camera turned on its side."""
+MAX_RIGHT_SCALE_CHANGE = 0.01
+"""Left and right views are at the same distance: a scale change beyond this is zoom."""
+RANGE_FACTOR = 2.0
+"""An implied range more than this factor from the profile's nominal range is suspect."""
+
+
+@dataclass(frozen=True)
+class Check:
+    """One on-site check's answer: ``ok``, a one-line ``message`` and, when not ok, what
+    to ``redo``. ``code`` is stable for machines (``exif``, ``same_frame``, ``parallax``,
+    ``rotation``, ``scale``, ``magnification``, ``match``)."""
+
+    code: str
+    ok: bool
+    message: str
+    redo: str = ""
+
+
+@dataclass(frozen=True)
+class ViewMap:
+    """How another view maps onto the left one, in full-resolution pixels.
+
+    ``scale`` (other / left image size of the same object), ``roll_deg`` (the other view
+    turned counter-clockwise by this much in the image), ``parallax_px`` (spread of the
+    residual after the best similarity: 10th to 90th percentile of its x component, px
+    of the full image), ``matches`` (sub-pixel tracks used).
+    """
+
+    scale: float
+    roll_deg: float
+    parallax_px: float
+    matches: int
+    reduction: float
+
+
+# -- one place that knows how many frames a position holds -------------------------------
+
+
+def frames_at(session: Session, position: str) -> tuple[Frame, ...]:
+    """The frames recorded for ``position``, oldest first (empty if none yet)."""
+    frame = session.frames.get(position)
+    return () if frame is None else (frame,)
+
+
+def add_position_frame(session: Session, position: str, path: Path) -> Session:
+    """Record ``path`` as a frame of ``position`` (copied into ``raw/``, never moved)."""
+    return add_frame(session, position, path, replace_existing=position in session.frames)
+
+
+def next_step(session: Session) -> str:
+    """Where a capture stands: the first position without a frame, then ``targets``
+    while no target has a reading, then ``process``."""
+    for position in POSITIONS:
+        if not frames_at(session, position):
+            return position
+    if not any(target.readings for target in session.targets):
+        return "targets"
+    return "process"
+
+
+# -- checks ---------------------------------------------------------------------------------
+
+
+def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX
+                ) -> tuple[np.ndarray, float]:
+    """A frame as (h, w) float32 grey in [0, 255], its longest side at most ``side_px``,
+    and the reduction factor (full-resolution px per check px, >= 1)."""
+    path = session.path / frame.file
+    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
+    image = to_pipeline([grey], linear=is_raw(path))[0]
+    reduction = max(1.0, max(image.shape) / side_px)
+    if reduction > 1.0:
+        size = (round(image.shape[1] / reduction), round(image.shape[0] / reduction))
+        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    return image, reduction
+
+
+def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0) -> ViewMap:
+    """Fit a similarity (scale, roll, shift) from ``left`` to ``other`` (check images,
+    (h, w) float32) and measure what it leaves; PipelineError if they do not match."""
+    matches = match_views(left, other, "left/other", n_points=1500)
+    a, b = matches.left.astype(np.float32), matches.other.astype(np.float32)
+    similarity, _ = cv2.estimateAffinePartial2D(a, b, method=cv2.LMEDS)
+    if similarity is None:
+        similarity = matches.affine
+    residual = b - (a @ similarity[:, :2].T + similarity[:, 2])
+    low, high = np.percentile(residual[:, 0], [10, 90])
+    return ViewMap(
+        scale=float(math.hypot(similarity[0, 0], similarity[1, 0])),
+        roll_deg=float(math.degrees(math.atan2(similarity[1, 0], similarity[0, 0]))),
+        parallax_px=float(high - low) * reduction,
+        matches=len(a),
+        reduction=reduction,
+    )
+
+
+def range_from_magnification(magnification: float, baseline_lb_m: float) -> float:
+    """Depth z (m) at which the back view, ``baseline_lb_m`` behind, is ``magnification``
+    times the left view's size: z = m C_lb / (1 - m); inf when m >= 1."""
+    if magnification >= 1.0:
+        return math.inf
+    return magnification * baseline_lb_m / (1.0 - magnification)
+
+
+def exif_check(session: Session, position: str) -> Check:
+    """The position's frame's EXIF against the other frames taken and the profile."""
+    paths = {pos: session.path / frames_at(session, pos)[-1].file
+             for pos in POSITIONS if frames_at(session, pos)}
+    findings = [f for f in check_exif(session.rig(), paths)
+                if f.frame in (position, None) and f.code != "capture.no_exif"]
+    if not findings:
+        if not any(f.code == "capture.no_exif" for f in check_exif(session.rig(), paths)):
+            return Check("exif", True, "EXIF agrees with the other frames and the profile")
+        return Check("exif", True, "no EXIF in this frame (rendered?): settings not checked")
+    return Check(
+        "exif", False, "; ".join(f.message for f in findings),
+        "set the camera back to the same zoom, exposure and ISO, and take this frame again",
+    )
+
+
+def same_frame_check(session: Session, position: str) -> Check | None:
+    """A failed check when the position's newest frame is byte for byte another
+    position's frame; None otherwise."""
+    frame = frames_at(session, position)[-1]
+    for other in POSITIONS:
+        if other != position and any(f.sha256 == frame.sha256 for f in frames_at(session, other)):
+            return Check(
+                "same_frame", False,
+                f"the {position} frame {frame.file} is the same file as the {other} frame",
+                f"take a new {position} frame from the {position} position",
+            )
+    return None
+
+
+def right_checks(view: ViewMap) -> list[Check]:
+    """Parallax, roll and scale of the right view against the left one."""
+    move = "move the tripod C_lr to the right of the left position and take the right frame"
+    parallax_ok = view.parallax_px >= MIN_PARALLAX_PX * view.reduction
+    checks = [
+        Check("parallax", True, f"parallax {view.parallax_px:.1f} px across the scene")
+        if parallax_ok else Check(
+            "parallax", False,
+            f"no parallax ({view.parallax_px:.2f} px): the tripod was not moved, or the "
+            "same view was taken twice", move,
+        ),
+        _roll_check(view, "right"),
+    ]
+    if abs(view.scale - 1.0) > MAX_RIGHT_SCALE_CHANGE:
+        checks.append(Check(
+            "scale", False,
+            f"right view {view.scale:.4f}x the left one: the zoom changed",
+            "set the zoom back to the left frame's and take the right frame again",
+        ))
+    return checks
+
+
+def back_checks(view: ViewMap, profile: RigProfile) -> list[Check]:
+    """Magnification of the back view (< 1) and the range it implies."""
+    c_lb = profile.baseline_lb.value_m
+    checks = [_roll_check(view, "back")]
+    if view.scale >= 1.0:
+        checks.append(Check(
+            "magnification", False,
+            f"back view {view.scale:.4f}x: not smaller than the left view",
+            f"take the back frame {c_lb:g} m behind the left position, same zoom",
+        ))
+        return checks
+    z = range_from_magnification(view.scale, c_lb)
+    text = f"back view {view.scale:.4f}x -> ~{_round_range(z)} m at C_lb = {c_lb:g} m"
+    nominal = profile.nominal_range_m
+    if nominal is not None and not nominal / RANGE_FACTOR <= z <= nominal * RANGE_FACTOR:
+        checks.append(Check(
+            "magnification", False, f"{text}, far from the planned {nominal:g} m",
+            f"check that the back position is {c_lb:g} m behind the left one and the zoom "
+            "is unchanged, then take the back frame again",
+        ))
+    else:
+        checks.append(Check("magnification", True, text))
+    return checks
+
+
+def _roll_check(view: ViewMap, position: str) -> Check:
+    if abs(view.roll_deg) <= MAX_ROLL_DEG:
+        return Check("rotation", True, f"{position} view rolled {view.roll_deg:+.2f} deg")
+    return Check(
+        "rotation", False,
+        f"{position} view rolled {view.roll_deg:+.1f} deg against the left one",
+        f"level the camera as for the left frame and take the {position} frame again",
+    )
+
+
+def _round_range(z: float) -> str:
+    """A range to two significant figures, as the magnification fixes it (~1 %)."""
+    return f"{float(f'{z:.2g}'):g}" if z >= 100 else f"{z:.0f}"
+
+
+def onsite_checks(session: Session, position: str) -> list[Check]:
+    """Every check for the newest frame of ``position`` (which must have one)."""
+    checks = [exif_check(session, position)]
+    same = same_frame_check(session, position)
+    if same is not None:
+        return [*checks, same]
+    if position == "left" or not frames_at(session, "left"):
+        return checks
+    left, reduction = check_image(session, frames_at(session, "left")[-1])
+    other, _ = check_image(session, frames_at(session, position)[-1])
+    try:
+        view = map_views(left, other, reduction)
+    except RigkitError as exc:
+        return [*checks, Check("match", False, str(exc),
+                               f"aim at the left frame's scene and take the {position} frame")]
+    if position == "right":
+        return [*checks, *right_checks(view)]
+    return [*checks, *back_checks(view, session.rig())]
+
+
+def all_ok(checks: Sequence[Check]) -> bool:
+    return all(check.ok for check in checks)

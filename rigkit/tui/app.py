@@ -1,0 +1,173 @@
+"""The field TUI's application: session state, navigation, and the background workers
+that watch the card folder and ingest frames.
+
+Every change goes through the session API (:mod:`rigkit.capture`) as it is made, so the
+session folder is always up to date: quitting or a crash loses nothing, and starting
+``rigkit field`` on the session again opens the step it stopped at
+(:func:`rigkit.capture.field.next_step`).
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+from textual import work
+from textual.app import App
+from textual.binding import Binding
+from textual.theme import Theme
+
+from rigkit.capture import Session, create_session, is_session, load_session
+from rigkit.capture.field import (
+    add_position_frame,
+    check_image,
+    frames_at,
+    next_step,
+    onsite_checks,
+)
+from rigkit.errors import RigkitError
+from rigkit.tui.config import FieldConfig
+from rigkit.tui.screens import (
+    PositionScreen,
+    ProcessScreen,
+    RigScreen,
+    StartScreen,
+    TargetsScreen,
+)
+from rigkit.tui.watch import arrivals
+
+# High contrast for sunlight: white on black, saturated accents.
+FIELD_THEME = Theme(
+    name="field-contrast",
+    primary="#ffd700",
+    secondary="#00d7ff",
+    accent="#ff5fff",
+    foreground="#ffffff",
+    background="#000000",
+    surface="#000000",
+    panel="#1c1c1c",
+    success="#00ff5f",
+    warning="#ffaf00",
+    error="#ff3030",
+    dark=True,
+)
+
+STEPS = ("rig", "left", "right", "back", "targets", "process")
+
+
+class FieldApp(App[None]):
+    """``rigkit field``: the guided three-position capture."""
+
+    TITLE = "rigkit field"
+    CSS_PATH = "field.tcss"
+    BINDINGS = [Binding("q", "quit_field", "quit", priority=False)]
+    ENABLE_COMMAND_PALETTE = False
+    AUTO_FOCUS = None  # keys go to the screen; an entry box takes focus when opened
+
+    def __init__(self, config: FieldConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.session: Session | None = None
+        self.stop = threading.Event()
+
+    # -- start and navigation -----------------------------------------------------------
+
+    def on_mount(self) -> None:
+        self.register_theme(FIELD_THEME)
+        self.theme = FIELD_THEME.name
+        watch = self.config.demo.card if self.config.demo else self.config.watch
+        if watch is not None:
+            self.watch_folder(watch)
+        target = self.config.session
+        if target is not None and is_session(target):
+            self.open_session(load_session(target))
+        elif target is not None and self.config.rig is not None:
+            self.open_session(create_session(target, self.config.rig), step="rig")
+        else:
+            self.push_screen(StartScreen())
+
+    def open_session(self, session: Session, step: str | None = None) -> None:
+        """Show ``session`` at ``step`` (default: where it stopped)."""
+        self.session = session
+        self.sub_title = f"{session.name}  ({session.path})"
+        self.goto(step or next_step(session))
+
+    def goto(self, step: str) -> None:
+        """Replace the current step's screen with ``step``'s."""
+        screen = (
+            RigScreen() if step == "rig"
+            else TargetsScreen() if step == "targets"
+            else ProcessScreen() if step == "process"
+            else PositionScreen(step)
+        )
+        if len(self.screen_stack) > 1:
+            self.switch_screen(screen)
+        else:
+            self.push_screen(screen)
+
+    def step_after(self, step: str, offset: int) -> str | None:
+        index = STEPS.index(step) + offset
+        return STEPS[index] if 0 <= index < len(STEPS) else None
+
+    def set_session(self, session: Session) -> None:
+        self.session = session
+
+    def action_quit_field(self) -> None:
+        """Quit: everything is already saved; stop the watcher and the workers."""
+        self.stop.set()
+        self.exit()
+
+    def on_unmount(self) -> None:
+        self.stop.set()
+
+    # -- frames ---------------------------------------------------------------------------
+
+    @work(thread=True, group="watch")
+    def watch_folder(self, folder: Path) -> None:
+        """Ingest each frame that arrives in ``folder`` into the position on screen."""
+        for path in arrivals(folder, self.stop):
+            position = self.call_from_thread(self.current_position)
+            if position is None:
+                self.call_from_thread(
+                    self.notify, f"{path.name} arrived; open a position to add it",
+                    severity="warning",
+                )
+                continue
+            self.ingest(path, position)
+
+    def current_position(self) -> str | None:
+        screen = self.screen
+        return screen.position if isinstance(screen, PositionScreen) else None
+
+    @work(thread=True, group="ingest")
+    def ingest_file(self, path: Path, position: str) -> None:
+        """A file named by hand (the path entry), ingested like an arrival."""
+        self.ingest(path, position)
+
+    def ingest(self, path: Path, position: str) -> None:
+        """Copy ``path`` into the session for ``position``, then run its on-site checks
+        (blocking; called from worker threads)."""
+        assert self.session is not None
+        try:
+            session = add_position_frame(self.session, position, path)
+        except RigkitError as exc:
+            self.call_from_thread(self.show_on_position, position, "error", str(exc))
+            return
+        self.call_from_thread(self.set_session, session)
+        self.call_from_thread(self.show_on_position, position, "added", path.name)
+        self.check_position(session, position)
+
+    def check_position(self, session: Session, position: str) -> None:
+        """Run the on-site checks of ``position``'s newest frame and show them (blocking)."""
+        try:
+            checks = onsite_checks(session, position)
+            image, _ = check_image(session, frames_at(session, position)[-1])
+        except RigkitError as exc:
+            self.call_from_thread(self.show_on_position, position, "error", str(exc))
+            return
+        self.call_from_thread(self.show_on_position, position, "checks", (checks, image))
+
+    def show_on_position(self, position: str, kind: str, value: object) -> None:
+        screen = self.screen
+        if isinstance(screen, PositionScreen) and screen.position == position:
+            screen.show(kind, value)
