@@ -51,6 +51,8 @@ MAX_ROLL_DEG = 10.0
 """Largest plausible roll between two positions; more means a camera turned on its side."""
 MAX_RIGHT_SCALE_CHANGE = 0.01
 """Left and right views are at the same distance: a scale change beyond this is zoom."""
+_UNCHECKED = frozenset({"capture.no_exif", "capture.focal_unchecked", "capture.size_unchecked"})
+"""Capture findings that say something was not recorded, not that it is wrong."""
 RANGE_FACTOR = 2.0
 """An implied range more than this factor from the profile's nominal range is suspect."""
 
@@ -154,19 +156,25 @@ def range_from_magnification(magnification: float, baseline_lb_m: float) -> floa
 
 
 def exif_check(session: Session, position: str) -> Check:
-    """The position's frame's EXIF against the other frames taken and the profile."""
+    """The position's frame's EXIF against the other frames taken and the profile.
+
+    Fields the camera did not record are noted, not failed; a rendered frame without
+    any EXIF passes with a note that nothing was checked.
+    """
     paths = {pos: session.path / frames_at(session, pos)[-1].file
              for pos in POSITIONS if frames_at(session, pos)}
-    findings = [f for f in check_exif(session.rig(), paths)
-                if f.frame in (position, None) and f.code != "capture.no_exif"]
-    if not findings:
-        if not any(f.code == "capture.no_exif" for f in check_exif(session.rig(), paths)):
-            return Check("exif", True, "EXIF agrees with the other frames and the profile")
+    findings = [f for f in check_exif(session.rig(), paths) if f.frame in (position, None)]
+    problems = [f for f in findings if f.code not in _UNCHECKED]
+    if problems:
+        return Check(
+            "exif", False, "; ".join(f.message for f in problems),
+            "set the camera back to the same zoom, exposure and ISO, and take this frame again",
+        )
+    if any(f.code == "capture.no_exif" for f in findings):
         return Check("exif", True, "no EXIF in this frame (rendered?): settings not checked")
-    return Check(
-        "exif", False, "; ".join(f.message for f in findings),
-        "set the camera back to the same zoom, exposure and ISO, and take this frame again",
-    )
+    missing = sorted({f.field or "" for f in findings})
+    note = f" (not recorded: {', '.join(missing)})" if missing else ""
+    return Check("exif", True, f"EXIF agrees with the other frames and the profile{note}")
 
 
 def same_frame_check(session: Session, position: str) -> Check | None:
@@ -199,7 +207,7 @@ def right_checks(view: ViewMap) -> list[Check]:
     if abs(view.scale - 1.0) > MAX_RIGHT_SCALE_CHANGE:
         checks.append(Check(
             "scale", False,
-            f"right view {view.scale:.4f}x the left one: the zoom changed",
+            f"right view {view.scale:.4f}× the left one: the zoom changed",
             "set the zoom back to the left frame's and take the right frame again",
         ))
     return checks
@@ -212,12 +220,12 @@ def back_checks(view: ViewMap, profile: RigProfile) -> list[Check]:
     if view.scale >= 1.0:
         checks.append(Check(
             "magnification", False,
-            f"back view {view.scale:.4f}x: not smaller than the left view",
+            f"back view {view.scale:.4f}×: not smaller than the left view",
             f"take the back frame {c_lb:g} m behind the left position, same zoom",
         ))
         return checks
     z = range_from_magnification(view.scale, c_lb)
-    text = f"back view {view.scale:.4f}x -> ~{_round_range(z)} m at C_lb = {c_lb:g} m"
+    text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {c_lb:.1f} m"
     nominal = profile.nominal_range_m
     if nominal is not None and not nominal / RANGE_FACTOR <= z <= nominal * RANGE_FACTOR:
         checks.append(Check(

@@ -89,7 +89,7 @@ class FieldApp(App[None]):
     def open_session(self, session: Session, step: str | None = None) -> None:
         """Show ``session`` at ``step`` (default: where it stopped)."""
         self.session = session
-        self.sub_title = f"{session.name}  ({session.path})"
+        self.sub_title = session.name
         self.goto(step or next_step(session))
 
     def goto(self, step: str) -> None:
@@ -125,7 +125,7 @@ class FieldApp(App[None]):
     @work(thread=True, group="watch")
     def watch_folder(self, folder: Path) -> None:
         """Ingest each frame that arrives in ``folder`` into the position on screen."""
-        for path in arrivals(folder, self.stop):
+        for path in arrivals(folder, self.stop, self.config.settle_s):
             position = self.call_from_thread(self.current_position)
             if position is None:
                 self.call_from_thread(
@@ -151,10 +151,10 @@ class FieldApp(App[None]):
         try:
             session = add_position_frame(self.session, position, path)
         except RigkitError as exc:
-            self.call_from_thread(self.show_on_position, position, "error", str(exc))
+            self.call_from_thread(self.on_position, position, "show_error", str(exc))
             return
         self.call_from_thread(self.set_session, session)
-        self.call_from_thread(self.show_on_position, position, "added", path.name)
+        self.call_from_thread(self.on_position, position, "show_added", path.name)
         self.check_position(session, position)
 
     def check_position(self, session: Session, position: str) -> None:
@@ -163,11 +163,12 @@ class FieldApp(App[None]):
             checks = onsite_checks(session, position)
             image, _ = check_image(session, frames_at(session, position)[-1])
         except RigkitError as exc:
-            self.call_from_thread(self.show_on_position, position, "error", str(exc))
+            self.call_from_thread(self.on_position, position, "show_error", str(exc))
             return
-        self.call_from_thread(self.show_on_position, position, "checks", (checks, image))
+        self.call_from_thread(self.on_position, position, "show_checks", checks, image)
 
-    def show_on_position(self, position: str, kind: str, value: object) -> None:
+    def on_position(self, position: str, method: str, *args: object) -> None:
+        """Call ``method`` of ``position``'s screen with ``args``, if it is on screen."""
         screen = self.screen
         if isinstance(screen, PositionScreen) and screen.position == position:
-            screen.show(kind, value)
+            getattr(screen, method)(*args)

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rigkit.tui.demo import Demo
+from rigkit.tui.watch import SETTLE_S
 
 
 @dataclass(frozen=True)
@@ -14,7 +15,8 @@ class FieldConfig:
     session to resume, or to create with ``rig``. ``watch``: folder frames arrive in.
     ``port``: the rangefinder's pyserial URL (None: readings typed in). ``demo``: the
     demo's folders, when running it. ``graphics``: let textual-image use the terminal's
-    graphics protocol for previews when it has one (else half blocks)."""
+    graphics protocol for previews when it has one (else half blocks). ``settle_s``: how
+    long a new file's size must stay the same before it counts, seconds."""
 
     capture: Path
     session: Path | None = None
@@ -24,3 +26,4 @@ class FieldConfig:
     protocol: str = "trupulse"
     demo: Demo | None = None
     graphics: bool = True
+    settle_s: float = SETTLE_S

@@ -34,7 +34,9 @@ class Demo:
     watched folder frames arrive in), ``capture`` (sessions), ``rig`` (its profile)."""
 
     root: Path
-    seed: int
+    seed: int = DEMO_SEED
+    shot_s: float = 0.8
+    """Seconds between the simulated camera's pieces of a file and the laser's shots."""
 
     @property
     def scene(self) -> Path:
@@ -56,9 +58,9 @@ class Demo:
     def session(self) -> Path:
         return self.capture / "demo"
 
-    def shoot(self, position: str, number: int, piece_s: float = 0.1) -> Path:
+    def shoot(self, position: str, number: int) -> Path:
         """Write ``position``'s rendered frame into the card as ``DSCN<number>.PNG`` in
-        pieces, ``piece_s`` seconds apart (blocking). Returns the file."""
+        pieces, ``shot_s / 8`` seconds apart (blocking). Returns the file."""
         data = (self.scene / f"{position}.png").read_bytes()
         target = self.card / f"DSCN{number:04d}.PNG"
         step = math.ceil(len(data) / SHOT_PIECES)
@@ -66,14 +68,15 @@ class Demo:
             for start in range(0, len(data), step):
                 handle.write(data[start:start + step])
                 handle.flush()
-                time.sleep(piece_s)
+                time.sleep(self.shot_s / 8)
         return target
 
-    def laser_url(self, pixel: tuple[float, float], shot_s: float = 0.8) -> str:
+    def laser_url(self, pixel: tuple[float, float]) -> str:
         """A simulated TruPulse aimed at ``pixel`` of the left view: it fires every
         ``shot_s`` seconds and reports the true range there."""
         return (f"sim://trupulse?distance={true_range_m(self.scene, pixel):.3f}"
-                f"&noise={LASER_NOISE_M}&interval={shot_s}&inclination=0.5&seed={self.seed}")
+                f"&noise={LASER_NOISE_M}&interval={self.shot_s:g}&inclination=0.5"
+                f"&seed={self.seed}")
 
 
 def true_range_m(scene: Path, pixel: tuple[float, float]) -> float:
@@ -89,9 +92,10 @@ def true_range_m(scene: Path, pixel: tuple[float, float]) -> float:
     return float(np.linalg.norm(ray * z - left.C))
 
 
-def prepare_demo(root: Path, seed: int = DEMO_SEED, size: tuple[int, int] = DEMO_SIZE) -> Demo:
+def prepare_demo(root: Path, seed: int = DEMO_SEED, size: tuple[int, int] = DEMO_SIZE,
+                 shot_s: float = 0.8) -> Demo:
     """Render the demo scene under ``root`` and write its rig profile; returns the folders."""
-    demo = Demo(root, seed)
+    demo = Demo(root, seed, shot_s)
     scene = generate_scene(SynthParams(width=size[0], height=size[1]), seed)
     write_scene(scene, demo.scene)
     demo.card.mkdir(parents=True, exist_ok=True)

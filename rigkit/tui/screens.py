@@ -255,7 +255,7 @@ class PositionScreen(StepScreen):
         session = session_of(self)
         app = field_app(self)
         if frames_at(session, self.position):
-            self.show("added", Path(frames_at(session, self.position)[-1].file).name)
+            self.show_added(Path(frames_at(session, self.position)[-1].file).name)
             self._recheck(session)
         elif app.config.demo is not None:
             self._demo_shoot()
@@ -271,22 +271,22 @@ class PositionScreen(StepScreen):
         number = 100 + ("left", "right", "back").index(self.position)
         demo.shoot(self.position, number)
 
-    def show(self, kind: str, value: object) -> None:
-        """Show a frame's progress: ``added`` (file name), ``checks`` ((checks, image))
-        or ``error`` (message)."""
-        box = self.query_one("#checks", Static)
-        if kind == "added":
-            box.update(f"frame {value}: checking ...")
-        elif kind == "error":
-            box.update(f"[b $error]✘ {_escape(str(value))}[/]")
-        else:
-            checks, image = value  # type: ignore[misc]
-            frame = frames_at(session_of(self), self.position)[-1]
-            box.update(f"frame {Path(frame.file).name}\n" + check_lines(checks) +
-                       ("\n[b]n[/]: next step" if all(c.ok for c in checks) else ""))
-            preview = self.query_one("#preview", Vertical)
-            preview.remove_children()
-            preview.mount(preview_widget(image, field_app(self).config.graphics))
+    def show_added(self, name: str) -> None:
+        self.query_one("#checks", Static).update(f"frame {name}: checking ...")
+
+    def show_error(self, message: str) -> None:
+        self.query_one("#checks", Static).update(f"[b $error]✘ {_escape(message)}[/]")
+
+    def show_checks(self, checks: list[Check], image: np.ndarray) -> None:
+        """The newest frame's checks, and its preview."""
+        frames = frames_at(session_of(self), self.position)
+        burst = f" ({len(frames)} frames)" if len(frames) > 1 else ""
+        hint = "\n[b]n[/]: next step" if all(c.ok for c in checks) else ""
+        self.query_one("#checks", Static).update(
+            f"frame {Path(frames[-1].file).name}{burst}\n{check_lines(checks)}{hint}")
+        preview = self.query_one("#preview", Vertical)
+        preview.remove_children()
+        preview.mount(preview_widget(image, field_app(self).config.graphics))
 
     def action_open_file(self) -> None:
         entry = self.query_one("#path", Input)
@@ -433,7 +433,8 @@ class TargetsScreen(StepScreen):
     def _add_reading(self, reading: LaserReading) -> None:
         target = self._current()
         source = reading.source.split(":", 1)[0]
-        self.readings.insert(0, f"{reading.time_utc[11:19]} {reading.slope_distance_m:8.2f} m {source}")
+        self.readings.insert(
+            0, f"{reading.time_utc[11:19]} {reading.slope_distance_m:8.2f} m {source}")
         del self.readings[6:]
         if target is None:
             self.readings[0] += "  (not kept: mark a target first)"
