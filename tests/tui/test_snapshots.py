@@ -27,7 +27,7 @@ P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
 SIZE = (80, 24)
 
 
-def test_card(shift: int = 0) -> np.ndarray:
+def drawn_card(shift: int = 0) -> np.ndarray:
     """(384, 512) uint8: sky gradient, a ridge, rings and blocks; ``shift`` moves it."""
     v, u = np.mgrid[0:384, 0:512].astype(np.float32)
     image = 200 - 0.3 * v
@@ -43,7 +43,7 @@ def session_with_frames(folder: Path, positions: tuple[str, ...]) -> Path:
     session = create_session(folder, P1000)
     for i, position in enumerate(positions):
         path = folder.parent / f"{position}.png"
-        cv2.imwrite(str(path), test_card(shift=8 * i))
+        cv2.imwrite(str(path), drawn_card(shift=8 * i))
         session = add_position_frame(session, position, path)
     return session.path
 
@@ -113,7 +113,7 @@ def test_results_of_a_run(snap_compare, capture: Path) -> None:
         session = add_target(session, name, (u, v),
                              readings=[LaserReading(300.0, "2026-04-12T08:01:12Z", "manual")])
     (path / "results").mkdir()
-    depth = cv2.applyColorMap(test_card(), cv2.COLORMAP_VIRIDIS)
+    depth = cv2.applyColorMap(drawn_card(), cv2.COLORMAP_VIRIDIS)
     cv2.imwrite(str(path / "results" / "depth.png"), depth)
     append_rows(path / LOG_NAME, [_row("T1", 301.2, 0.8), _row("T2", 288.0, -4.6)])
     assert snap_compare(app_for(capture, path), terminal_size=SIZE)
