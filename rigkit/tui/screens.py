@@ -228,6 +228,7 @@ class PositionScreen(StepScreen):
         super().__init__()
         self.position = position
         self.step = position
+        self._shown = ""  # the newest frame's checks, as markup
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -275,15 +276,17 @@ class PositionScreen(StepScreen):
         self.query_one("#checks", Static).update(f"frame {name}: checking ...")
 
     def show_error(self, message: str) -> None:
-        self.query_one("#checks", Static).update(f"[b $error]✘ {_escape(message)}[/]")
+        """A file that could not be added or checked; the position keeps what it had."""
+        self.query_one("#checks", Static).update(
+            f"[b $error]✘ {_escape(message)}[/]\n{self._shown}")
 
     def show_checks(self, checks: list[Check], image: np.ndarray) -> None:
         """The newest frame's checks, and its preview."""
         frames = frames_at(session_of(self), self.position)
         burst = f" ({len(frames)} frames)" if len(frames) > 1 else ""
         hint = "\n[b]n[/]: next step" if all(c.ok for c in checks) else ""
-        self.query_one("#checks", Static).update(
-            f"frame {Path(frames[-1].file).name}{burst}\n{check_lines(checks)}{hint}")
+        self._shown = f"frame {Path(frames[-1].file).name}{burst}\n{check_lines(checks)}{hint}"
+        self.query_one("#checks", Static).update(self._shown)
         preview = self.query_one("#preview", Vertical)
         preview.remove_children()
         preview.mount(preview_widget(image, field_app(self).config.graphics))
@@ -294,13 +297,15 @@ class PositionScreen(StepScreen):
         entry.focus()
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        event.input.display = False
+        self.key_escape()
         if event.value.strip():
             field_app(self).ingest_file(Path(event.value.strip()).expanduser(), self.position)
         event.input.value = ""
 
     def key_escape(self) -> None:
+        """Close the entry box; keys go to the screen again."""
         self.query_one("#path", Input).display = False
+        self.set_focus(None)
 
 
 # -- laser targets --------------------------------------------------------------------------
@@ -360,8 +365,7 @@ class TargetsScreen(StepScreen):
         self.app.call_from_thread(self._show_left, image)
 
     def _show_left(self, image: np.ndarray) -> None:
-        grey = np.clip(image, 0, 255).astype(np.uint8)
-        self.query_one(PixelView).set_image(grey)
+        self.query_one(PixelView).set_image(image)
         self._show_targets()
 
     def _current(self) -> Any:
@@ -418,10 +422,12 @@ class TargetsScreen(StepScreen):
         entry.focus()
 
     def key_escape(self) -> None:
+        """Close the entry box; keys go to the screen again."""
         self.query_one("#range", Input).display = False
+        self.set_focus(None)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        event.input.display = False
+        self.key_escape()
         text, event.input.value = event.value.strip(), ""
         try:
             value = float(text)

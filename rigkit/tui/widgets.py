@@ -34,6 +34,14 @@ class Mark:
     label: str
 
 
+def stretch(grey: np.ndarray) -> np.ndarray:
+    """(H, W) grey -> uint8 with its 1st and 99th percentiles at 0 and 255: readable in
+    sunlight whatever the exposure (for display only; checks use the frame itself)."""
+    low, high = np.percentile(grey, [1, 99])
+    scaled = (grey.astype(np.float32) - low) * (255.0 / max(float(high - low), 1e-6))
+    return np.clip(scaled, 0, 255).astype(np.uint8)
+
+
 class PixelView(Widget):
     """An RGB image ((H, W, 3) uint8) scaled into the widget, aspect kept.
 
@@ -58,9 +66,10 @@ class PixelView(Widget):
     # -- state ----------------------------------------------------------------------------
 
     def set_image(self, image: np.ndarray | None) -> None:
-        """Show ``image`` ((H, W, 3) uint8, or (H, W) grey) or nothing."""
+        """Show ``image`` ((H, W, 3) uint8, or (H, W) grey, stretched to full contrast for
+        the eye) or nothing."""
         if image is not None and image.ndim == 2:
-            image = np.repeat(image[..., None], 3, axis=2)
+            image = np.repeat(stretch(image)[..., None], 3, axis=2)
         self._image = image
         if image is not None and self._want_cursor and self._cursor is None:
             self._cursor = (image.shape[1] // 2, image.shape[0] // 2)
