@@ -11,6 +11,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from rigkit.capture import create_session
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.demo import prepare_demo
@@ -42,8 +43,9 @@ async def shoot(pilot, app: FieldApp, name: str) -> None:
 
 async def flow(root: Path) -> None:
     demo = prepare_demo(root, shot_s=0.2)
-    app = FieldApp(FieldConfig(capture=demo.capture, session=demo.session, rig=demo.rig,
-                               demo=demo, graphics=False))
+    create_session(demo.session, demo.rig)
+    app = FieldApp(FieldConfig(capture=demo.capture, session=demo.session, demo=demo,
+                               graphics=False))
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.pause(0.5)
         await shoot(pilot, app, "rig.svg")
@@ -70,9 +72,9 @@ async def flow(root: Path) -> None:
 async def same_frame_twice(root: Path) -> None:
     """The right position given the left frame again (the session from ``flow``)."""
     demo = prepare_demo(root / "again", shot_s=0.2)
-    session = demo.capture / "mistake"
-    app = FieldApp(FieldConfig(capture=demo.capture, session=session, rig=demo.rig,
-                               watch=demo.card, graphics=False))
+    session = create_session(demo.capture / "mistake", demo.rig).path
+    app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
+                               graphics=False))
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.press("n")
         await until(pilot, lambda: isinstance(app.screen, PositionScreen))

@@ -61,14 +61,15 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--watch {args.watch}: no such folder")
     if args.rig is not None and not args.rig.is_file():
         raise InputError(f"--rig {args.rig}: no such file")
-    if args.session is not None and not (args.session / "session.yaml").is_file() \
-            and args.rig is None:
-        raise InputError(f"{args.session}: not a session; give --rig PROFILE to create it")
     if args.demo:
+        from rigkit.capture import create_session
+
         demo = prepare_demo(Path(tempfile.mkdtemp(prefix="rigkit-demo-")))
+        create_session(demo.session, demo.rig)
         config = FieldConfig(capture=demo.capture, session=demo.session, rig=demo.rig,
                              port=args.port, demo=demo)
     else:
+        _open_or_create(args.session, args.rig)
         capture = args.session.parent if args.session is not None else args.capture
         config = FieldConfig(capture=capture, session=args.session, rig=args.rig,
                              watch=args.watch, port=args.port, protocol=args.protocol)
@@ -76,3 +77,18 @@ def run(args: argparse.Namespace) -> int:
     if args.demo:
         print(f"the demo session is kept in {config.session}")
     return 0
+
+
+def _open_or_create(session: Path | None, rig: Path | None) -> None:
+    """Check SESSION before the screen opens, so a bad one is one line: an existing
+    session must load; a new one needs --rig and is created here."""
+    from rigkit.capture import create_session, is_session, load_session
+
+    if session is None:
+        return
+    if is_session(session):
+        load_session(session)
+    elif rig is None:
+        raise InputError(f"{session}: not a session; give --rig PROFILE to create it")
+    else:
+        create_session(session, rig)

@@ -17,7 +17,7 @@ from textual.app import App
 from textual.binding import Binding
 from textual.theme import Theme
 
-from rigkit.capture import Session, create_session, is_session, load_session
+from rigkit.capture import Session, load_session
 from rigkit.capture.field import (
     add_position_frame,
     check_image,
@@ -78,19 +78,17 @@ class FieldApp(App[None]):
         watch = self.config.demo.card if self.config.demo else self.config.watch
         if watch is not None:
             self.watch_folder(watch)
-        target = self.config.session
-        if target is not None and is_session(target):
-            self.open_session(load_session(target))
-        elif target is not None and self.config.rig is not None:
-            self.open_session(create_session(target, self.config.rig), step="rig")
+        if self.config.session is not None:
+            self.open_session(load_session(self.config.session))
         else:
             self.push_screen(StartScreen())
 
-    def open_session(self, session: Session, step: str | None = None) -> None:
-        """Show ``session`` at ``step`` (default: where it stopped)."""
+    def open_session(self, session: Session) -> None:
+        """Show ``session`` where it stopped: the rig first while it has no frame yet."""
         self.session = session
         self.sub_title = session.name
-        self.goto(step or next_step(session))
+        step = next_step(session)
+        self.goto("rig" if step == "left" else step)
 
     def goto(self, step: str) -> None:
         """Replace the current step's screen with ``step``'s."""
@@ -124,15 +122,25 @@ class FieldApp(App[None]):
 
     @work(thread=True, group="watch")
     def watch_folder(self, folder: Path) -> None:
-        """Ingest each frame that arrives in ``folder`` into the position on screen."""
-        for path in arrivals(folder, self.stop, self.config.settle_s):
-            position = self.call_from_thread(self.current_position)
-            if position is None:
-                self.call_from_thread(
-                    self.notify, f"{path.name} arrived; open a position to add it",
-                    severity="warning",
-                )
-                continue
+        """Ingest each frame that arrives in ``folder`` into the position on screen; when
+        the folder goes away (card removed), wait for it to come back."""
+        while not self.stop.is_set():
+            if folder.is_dir():
+                for path in arrivals(folder, self.stop, self.config.settle_s):
+                    self.arrived(path)
+                if not self.stop.is_set():
+                    self.call_from_thread(
+                        self.notify, f"{folder} is gone (card removed?); watching again "
+                        "when it is back", severity="warning")
+            self.stop.wait(1.0)
+
+    def arrived(self, path: Path) -> None:
+        """A complete new file in the watched folder (in the watcher's thread)."""
+        position = self.call_from_thread(self.current_position)
+        if position is None:
+            self.call_from_thread(self.notify, f"{path.name} arrived; open a position to add "
+                                  "it", severity="warning")
+        else:
             self.ingest(path, position)
 
     def current_position(self) -> str | None:

@@ -24,6 +24,7 @@ from rigkit.capture import (
     RESULTS_DIR,
     LaserReading,
     Session,
+    Target,
     add_target,
     create_session,
     is_session,
@@ -138,8 +139,8 @@ class StartScreen(Screen[None]):
         for folder in folders:
             try:
                 session = load_session(folder)
-            except RigkitError as exc:
-                table.add_row(folder.name, "unreadable", "", str(exc)[:30], key=str(folder))
+            except RigkitError:  # opening it shows why
+                table.add_row(folder.name, "unreadable", "", "", key=str(folder))
                 continue
             frames = sum(len(frames_at(session, p)) for p in ("left", "right", "back"))
             table.add_row(session.name, next_step(session), str(frames),
@@ -174,7 +175,7 @@ class StartScreen(Screen[None]):
         except RigkitError as exc:
             self.query_one("#message", Static).update(f"[b $error]{_escape(str(exc))}[/]")
             return
-        app.open_session(session, step="rig")
+        app.open_session(session)
 
 
 # -- the rig ------------------------------------------------------------------------------
@@ -331,6 +332,12 @@ class TargetsScreen(StepScreen):
     ]
     DEMO_SHOTS = 3
 
+    def __init__(self) -> None:
+        super().__init__()
+        self.reduction = 1.0  # full-resolution px per px of the shown left view
+        self.protocol = "trupulse"
+        self.readings: list[str] = []  # the newest first, as shown
+
     def compose(self) -> ComposeResult:
         yield Header()
         with Horizontal():
@@ -344,12 +351,13 @@ class TargetsScreen(StepScreen):
 
     def on_mount(self) -> None:
         self.query_one("#range", Input).display = False
-        self.readings: list[str] = []
         self._load_left()
         self._show_targets()
         app = field_app(self)
+        port, self.protocol = app.config.port, app.config.protocol
         spec = session_of(self).rig().rangefinder
-        port = app.config.port or (spec.port if spec is not None else None)
+        if port is None and spec is not None and spec.port is not None:
+            port, self.protocol = spec.port, spec.protocol
         if app.config.demo is None and port is not None:
             self._listen(port, 0)
         elif app.config.demo is None:
@@ -368,7 +376,8 @@ class TargetsScreen(StepScreen):
         self.query_one(PixelView).set_image(image)
         self._show_targets()
 
-    def _current(self) -> Any:
+    def _current(self) -> Target | None:
+        """The newest target: readings go to it."""
         targets = session_of(self).targets
         return targets[-1] if targets else None
 
@@ -385,13 +394,13 @@ class TargetsScreen(StepScreen):
             u, v = self._full(view.cursor)
             lines.append(f"cursor ({u:.0f}, {v:.0f})  zoom {view.zoom}x")
         self.query_one("#targets", Static).update("\n".join(lines))
-        scale = getattr(self, "reduction", 1.0)
+        scale = self.reduction
         view.set_marks([Mark((t.pixel[0] + 0.5) / scale - 0.5, (t.pixel[1] + 0.5) / scale - 0.5,
                              t.name) for t in session.targets])
 
     def _full(self, cursor: tuple[int, int]) -> tuple[float, float]:
         """A check-image pixel in the full-resolution left frame (centres at integers)."""
-        scale = getattr(self, "reduction", 1.0)
+        scale = self.reduction
         return (cursor[0] + 0.5) * scale - 0.5, (cursor[1] + 0.5) * scale - 0.5
 
     def action_move(self, du: int, dv: int) -> None:
@@ -464,7 +473,7 @@ class TargetsScreen(StepScreen):
         """Readings from ``url`` until the screen closes (or ``count`` of them, if > 0)."""
         worker = get_current_worker()
         app = field_app(self)
-        protocol = app.config.protocol
+        protocol = self.protocol
         got = 0
         for item in follow(url, protocol, stopped=lambda: worker.is_cancelled or app.stop.is_set()):
             if isinstance(item, LinkStatus):

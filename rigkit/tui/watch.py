@@ -30,7 +30,8 @@ def is_frame_file(path: Path) -> bool:
 def arrivals(folder: Path, stop: threading.Event, settle_s: float = SETTLE_S,
              poll: bool = False) -> Iterator[Path]:
     """Yield each new frame file in ``folder`` (recursively) once it is complete, until
-    ``stop`` is set. ``poll`` uses polling instead of OS notifications (network mounts)."""
+    ``stop`` is set or the folder is gone (a card unmounted). ``poll`` uses polling
+    instead of OS notifications (network mounts)."""
     seen = {p for p in folder.rglob("*") if p.is_file()}
     pending: dict[Path, tuple[int, float]] = {}  # path -> (size, when it was last seen)
     step_ms = max(50, int(settle_s * 500))
@@ -42,6 +43,8 @@ def arrivals(folder: Path, stop: threading.Event, settle_s: float = SETTLE_S,
             if path not in seen and is_frame_file(path):
                 pending.setdefault(path, (-1, time.monotonic()))
         yield from _settled(pending, seen, settle_s)
+        if not folder.is_dir():
+            return
 
 
 def _settled(pending: dict[Path, tuple[int, float]], seen: set[Path], settle_s: float

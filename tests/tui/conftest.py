@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from rigkit.capture import create_session
 from rigkit.tui.demo import Demo, prepare_demo
 
 SHOT_S = 0.1  # the simulated camera and laser, fast
@@ -26,12 +27,14 @@ def demo_scene(tmp_path_factory: pytest.TempPathFactory) -> Demo:
 
 @pytest.fixture
 def demo(demo_scene: Demo, tmp_path: Path) -> Demo:
-    """A private demo: the rendered scene and rig copied, empty card and capture folders."""
+    """A private demo: the rendered scene and rig copied, an empty card folder and a new
+    session (as `rigkit field --demo` starts)."""
     shutil.copytree(demo_scene.scene, tmp_path / "scene")
     shutil.copy(demo_scene.rig, tmp_path / "rig.yaml")
     copy = Demo(tmp_path, demo_scene.seed, SHOT_S)
     copy.card.mkdir()
     copy.capture.mkdir()
+    create_session(copy.session, copy.rig)
     return copy
 
 

@@ -19,7 +19,7 @@ SIZE = (80, 24)
 
 
 def demo_app(demo: Demo) -> FieldApp:
-    return FieldApp(FieldConfig(capture=demo.capture, session=demo.session, rig=demo.rig,
+    return FieldApp(FieldConfig(capture=demo.capture, session=demo.session,
                                 demo=demo, graphics=False, settle_s=SETTLE_S))
 
 
@@ -77,8 +77,8 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
 
 @synchronous
 async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -> None:
-    session = demo.capture / "field-1"
-    app = FieldApp(FieldConfig(capture=demo.capture, session=session, rig=demo.rig,
+    session = create_session(demo.capture / "field-1", demo.rig).path
+    app = FieldApp(FieldConfig(capture=demo.capture, session=session,
                                watch=demo.card, graphics=False, settle_s=SETTLE_S))
     async with app.run_test(size=SIZE) as pilot:
         await pilot.press("n")

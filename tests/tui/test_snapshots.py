@@ -67,9 +67,8 @@ def test_start_screen_lists_sessions(snap_compare, capture: Path) -> None:
 
 
 def test_rig_screen(snap_compare, capture: Path) -> None:
-    app = FieldApp(FieldConfig(capture=capture, session=capture / "ridge", rig=P1000,
-                               graphics=False))
-    assert snap_compare(app, terminal_size=SIZE)
+    create_session(capture / "ridge", P1000)
+    assert snap_compare(app_for(capture, capture / "ridge"), terminal_size=SIZE)
 
 
 def test_left_position_with_a_checked_frame(snap_compare, capture: Path) -> None:

@@ -36,3 +36,15 @@ def test_a_file_counts_once_its_size_stops_changing(tmp_path: Path) -> None:
             for path in arrivals(tmp_path, stop, settle_s=0.3)]
     assert [(name, size) for name, size, _ in seen] == [("DSCN0101.PNG", 4000)]
     assert seen[0][2] >= finished["at"] + 0.3  # not before it stopped growing for 0.3 s
+
+
+def test_watching_ends_when_the_folder_goes(tmp_path: Path) -> None:
+    card = tmp_path / "card"
+    card.mkdir()
+    stop = threading.Event()
+    threading.Timer(0.3, card.rmdir).start()
+    threading.Timer(5.0, stop.set).start()  # only if it did not end by itself
+    start = time.monotonic()
+    assert list(arrivals(card, stop, settle_s=0.2)) == []
+    assert time.monotonic() - start < 3.0
+    stop.set()
