@@ -126,6 +126,8 @@ class StartScreen(Screen[None]):
         yield Header()
         yield Static("Sessions in " + str(field_app(self).config.capture), classes="title")
         yield DataTable(id="sessions", cursor_type="row")
+        yield Static("Enter: open the selected session   Tab: start a new one below",
+                     id="hint")
         yield Static("New session: NAME RIG.yaml, then Enter", classes="title")
         yield Input(placeholder="ridge-0412 rigs/p1000-tripod.yaml", id="new")
         yield Static("", id="message")
@@ -204,7 +206,7 @@ class RigScreen(StepScreen):
             f"field of view  {fov_deg(focal, width):.2f} x {fov_deg(focal, height):.2f} deg",
             f"baselines      C_lr {profile.baseline_lr.value_m:g} m, "
             f"C_lb {profile.baseline_lb.value_m:g} m",
-            f"at {nominal:g} m     disparity {row.disparity_px:.1f} px, depth error "
+            f"{f'at {nominal:g} m':<14} disparity {row.disparity_px:.1f} px, depth error "
             f"± {row.total_m:.1f} m ({100 * row.total_fraction:.1f} %)",
             "",
         ]
