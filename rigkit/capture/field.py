@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 
 import cv2
@@ -35,9 +36,10 @@ import numpy as np
 from rigkit.capture.actions import add_frame
 from rigkit.capture.checks import check_exif
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
+from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
 from rigkit.errors import RigkitError
 from rigkit.pipeline.features import match_views
+from rigkit.rangefinder.framing import Reading, escape_bytes
 from rigkit.rig.profile import RigProfile
 
 CHECK_SIDE_PX = 1024
@@ -98,6 +100,18 @@ def frames_at(session: Session, position: str) -> tuple[Frame, ...]:
 def add_position_frame(session: Session, position: str, path: Path) -> Session:
     """Record ``path`` as a frame of ``position`` (copied into ``raw/``, never moved)."""
     return add_frame(session, position, path, replace_existing=position in session.frames)
+
+
+def reading_from_device(reading: Reading, source: str) -> LaserReading:
+    """A rangefinder's reading as the session records it; ``source`` is
+    ``<protocol>:<port>``."""
+    return LaserReading(
+        slope_distance_m=reading.slope_distance_m,
+        time_utc=datetime.fromtimestamp(reading.timestamp, UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        source=source,
+        inclination_deg=reading.inclination_deg,
+        raw=escape_bytes(reading.raw),
+    )
 
 
 def next_step(session: Session) -> str:

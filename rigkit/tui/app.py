@@ -88,14 +88,15 @@ class FieldApp(App[None]):
         self.session = session
         self.sub_title = session.name
         step = next_step(session)
-        self.goto("rig" if step == "left" else step)
+        self.goto("rig" if step == "left" else step, resume=True)
 
-    def goto(self, step: str) -> None:
-        """Replace the current step's screen with ``step``'s."""
+    def goto(self, step: str, resume: bool = False) -> None:
+        """Replace the current step's screen with ``step``'s (``resume``: opening a
+        session, so the process step shows its latest run rather than running again)."""
         screen = (
             RigScreen() if step == "rig"
             else TargetsScreen() if step == "targets"
-            else ProcessScreen() if step == "process"
+            else ProcessScreen(resume) if step == "process"
             else PositionScreen(step)
         )
         if len(self.screen_stack) > 1:

@@ -5,7 +5,6 @@ changes the session only through :mod:`rigkit.capture`."""
 from __future__ import annotations
 
 import math
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -33,10 +32,9 @@ from rigkit.capture import (
     utc_now,
 )
 from rigkit.capture.comparisons import Comparison, latest_run
-from rigkit.capture.field import Check, check_image, frames_at, next_step
+from rigkit.capture.field import Check, check_image, frames_at, next_step, reading_from_device
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow
-from rigkit.rangefinder.framing import Reading, escape_bytes
 from rigkit.reporting.verdict import judge
 from rigkit.rig.budget import budget_row, check_rig
 from rigkit.rig.optics import fov_deg
@@ -246,7 +244,7 @@ class PositionScreen(StepScreen):
     def _checklist(self) -> str:
         c_lb = f"{session_of(self).rig().baseline_lb.value_m:g} m in the profile"
         items = [item.format(c_lb=c_lb) for item in CHECKLISTS[self.position]]
-        return f"[b]{self.position.upper()} position[/]\n" + "\n".join(f"☐ {i}" for i in items)
+        return f"[b]{self.position.upper()} position[/]\n" + "\n".join(f"• {i}" for i in items)
 
     def _waiting(self) -> str:
         app = field_app(self)
@@ -481,7 +479,8 @@ class TargetsScreen(StepScreen):
             if isinstance(item, LinkStatus):
                 app.call_from_thread(self._link, item.message)
                 continue
-            app.call_from_thread(self._add_reading, laser_reading(item, f"{protocol}:{url}"))
+            app.call_from_thread(self._add_reading,
+                                 reading_from_device(item, f"{protocol}:{url}"))
             got += 1
             if count and got >= count:
                 app.call_from_thread(self._link, f"{got} shots fired; mark the next target")
@@ -489,17 +488,6 @@ class TargetsScreen(StepScreen):
 
     def on_unmount(self) -> None:
         self.workers.cancel_group(self, "laser")
-
-
-def laser_reading(reading: Reading, source: str) -> LaserReading:
-    """A device reading as the session records it."""
-    return LaserReading(
-        slope_distance_m=reading.slope_distance_m,
-        time_utc=datetime.fromtimestamp(reading.timestamp, UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        source=source,
-        inclination_deg=reading.inclination_deg,
-        raw=escape_bytes(reading.raw),
-    )
 
 
 # -- processing --------------------------------------------------------------------------
@@ -510,6 +498,11 @@ class ProcessScreen(StepScreen):
 
     step = "process"
     BINDINGS = [Binding("r", "run", "process")]
+
+    def __init__(self, resume: bool = False) -> None:
+        """``resume``: show the latest run if there is one, instead of processing."""
+        super().__init__()
+        self.resume = resume
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -527,7 +520,7 @@ class ProcessScreen(StepScreen):
         session = session_of(self)
         rows = latest_run(read_rows(session.path / "comparisons.csv")) \
             if (session.path / "comparisons.csv").is_file() else []
-        if rows and (session.path / RESULTS_DIR / "depth.png").is_file():
+        if self.resume and rows and (session.path / RESULTS_DIR / "depth.png").is_file():
             self._show_results(rows)
             self.query_one("#stage", Static).update("latest run shown; r: process again")
         else:

@@ -150,3 +150,17 @@ def test_exif_check_names_the_setting_that_changed(tmp_path: Path) -> None:
     check = exif_check(session, "right")
     assert not check.ok and "ISO 400" in check.message and "ISO 100" in check.message
     assert "ISO" in check.redo
+
+
+def test_a_device_reading_is_recorded_with_its_source_and_frame() -> None:
+    from rigkit.capture.field import reading_from_device
+    from rigkit.rangefinder import open_rangefinder
+
+    with open_rangefinder("sim://trupulse?interval=0.01&distance=296.4", timeout=2) as device:
+        reading = device.read()
+    recorded = reading_from_device(reading, "trupulse:sim://trupulse")
+    assert recorded.slope_distance_m == pytest.approx(296.4)
+    assert recorded.inclination_deg == pytest.approx(1.2)
+    assert recorded.source == "trupulse:sim://trupulse"
+    assert recorded.raw is not None and recorded.raw.startswith("$PLTIT,HV,")
+    assert recorded.time_utc.endswith("Z") and len(recorded.time_utc) == 20
