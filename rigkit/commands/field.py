@@ -61,6 +61,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--watch {args.watch}: no such folder")
     if args.rig is not None and not args.rig.is_file():
         raise InputError(f"--rig {args.rig}: no such file")
+    from rigkit.rangefinder.protocols import get_protocol
+
+    get_protocol(args.protocol)  # an unknown one is refused now, not on the targets step
     if args.demo:
         from rigkit.capture import create_session
 

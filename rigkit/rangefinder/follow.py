@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
+from rigkit.errors import InputError
 from rigkit.rangefinder.driver import PortError, Rangefinder, ReadTimeout, open_rangefinder
 from rigkit.rangefinder.framing import RangefinderError, Reading
 
@@ -40,7 +41,8 @@ def follow(
 ) -> Iterator[Reading | LinkStatus]:
     """Yield readings from ``url`` and a :class:`LinkStatus` whenever the link changes,
     until ``stopped()`` is true. Errors other than a lost or unopenable port (a device
-    refusing a request, a bad frame) are reported as a status and reading goes on."""
+    refusing a request, a bad frame) are reported as a status and reading goes on; bad
+    settings (an unknown protocol) are reported once and end it."""
     open_port = opener or (lambda u, p: open_rangefinder(u, p, timeout=poll_s))
     while not stopped():
         try:
@@ -49,6 +51,9 @@ def follow(
             yield LinkStatus(False, f"{exc}; retrying every {retry_s:g} s")
             _sleep(retry_s, stopped)
             continue
+        except InputError as exc:  # bad settings: trying again cannot help
+            yield LinkStatus(False, str(exc))
+            return
         yield LinkStatus(True, f"connected to {url} ({protocol})")
         with device:
             yield from _readings(device, stopped, poll_s)

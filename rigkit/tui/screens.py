@@ -368,7 +368,11 @@ class TargetsScreen(StepScreen):
     @work(thread=True, group="aim")
     def _load_left(self) -> None:
         session = session_of(self)
-        image, reduction = check_image(session, frames_at(session, "left")[-1])
+        try:
+            image, reduction = check_image(session, frames_at(session, "left")[-1])
+        except RigkitError as exc:
+            self.app.call_from_thread(self._link, str(exc))
+            return
         self.reduction = reduction
         self.app.call_from_thread(self._show_left, image)
 

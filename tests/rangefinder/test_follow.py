@@ -62,3 +62,9 @@ def test_stopping_ends_it_promptly() -> None:
 def test_bad_settings_are_reported_not_raised(url: str) -> None:
     items = _take(url, 1)
     assert isinstance(items[0], LinkStatus) and not items[0].connected
+
+
+def test_an_unknown_protocol_is_reported_once() -> None:
+    items = list(follow("sim://trupulse", "morse", stopped=lambda: False))
+    assert len(items) == 1 and not items[0].connected  # type: ignore[union-attr]
+    assert "morse" in items[0].message  # type: ignore[union-attr]
