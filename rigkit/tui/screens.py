@@ -13,7 +13,7 @@ import numpy as np
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, ProgressBar, Static
 from textual.worker import get_current_worker
@@ -43,6 +43,9 @@ from rigkit.tui.widgets import Mark, PixelView
 
 if TYPE_CHECKING:
     from rigkit.tui.app import FieldApp
+
+PLANNED_RANGE_M = 300.0
+"""Range the rig summary is given at when the profile names none (as `rigkit rig check`)."""
 
 CHECKLISTS = {
     "left": (
@@ -188,12 +191,16 @@ class RigScreen(StepScreen):
 
     def compose(self) -> ComposeResult:
         yield Header()
-        yield Static(self._summary(), id="rig")
+        with VerticalScroll():  # many warnings scroll (arrows, page keys) at 80x24
+            yield Static(self._summary(), id="rig")
         yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one(VerticalScroll).focus()
 
     def _summary(self) -> str:
         profile = session_of(self).rig()
-        nominal = profile.nominal_range_m or 300.0
+        nominal = profile.nominal_range_m or PLANNED_RANGE_M
         check = check_rig(profile, [nominal])
         width, height = profile.image_size
         focal = profile.focal_px
