@@ -75,8 +75,9 @@ class Check:
 class ViewMap:
     """How another view maps onto the left one, in full-resolution pixels.
 
-    ``scale`` (other / left image size of the same object), ``roll_deg`` (the other view
-    turned counter-clockwise by this much in the image), ``parallax_px`` (spread of the
+    ``scale`` (other / left image size of the same object), ``roll_deg`` (the scene
+    appears turned clockwise on screen by this much in the other view, degrees, image y
+    down), ``parallax_px`` (spread of the
     residual after the best similarity: 10th to 90th percentile of its x component, px
     of the full image), ``matches`` (sub-pixel tracks used).
     """

@@ -59,8 +59,8 @@ def test_map_views_recovers_a_known_similarity_with_no_parallax() -> None:
     other = similarity(left, 0.99, 2.0, (4.0, -3.0))
     view = map_views(left, other, reduction=4.0)
     assert view.scale == pytest.approx(0.99, abs=3e-4)
-    # getRotationMatrix2D turns counter-clockwise on screen: v down makes it negative.
-    assert abs(view.roll_deg) == pytest.approx(2.0, abs=0.02)
+    # getRotationMatrix2D turns the content counter-clockwise on screen: roll is -2 deg.
+    assert view.roll_deg == pytest.approx(-2.0, abs=0.02)
     assert view.parallax_px < 0.1 * 4.0
     assert view.matches > 100
 
