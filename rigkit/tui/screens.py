@@ -504,6 +504,10 @@ class TargetsScreen(StepScreen):
 # -- processing --------------------------------------------------------------------------
 
 
+class Stopped(Exception):
+    """Processing given up because its screen closed (raised from the progress report)."""
+
+
 class ProcessScreen(StepScreen):
     """Run the depth pipeline; show the depth, the laser comparisons and the verdict."""
 
@@ -543,18 +547,28 @@ class ProcessScreen(StepScreen):
 
     @work(thread=True, exclusive=True, group="process")
     def _process(self) -> None:
+        """Process the session; leaving the screen or quitting stops it at the next stage
+        (nothing is written until a run is complete)."""
         app = field_app(self)
         path = session_of(self).path
+        worker = get_current_worker()
 
         def progress(stage: str, fraction: float) -> None:
+            if worker.is_cancelled:
+                raise Stopped(stage)
             app.call_from_thread(self._progress, stage, fraction)
 
         try:
             outcome = process_session(path, new_run_id(), progress=progress)
+        except Stopped:
+            return
         except RigkitError as exc:
             app.call_from_thread(self._failed, str(exc))
             return
         app.call_from_thread(self._show_results, list(outcome.rows))
+
+    def on_unmount(self) -> None:
+        self.workers.cancel_group(self, "process")
 
     def _progress(self, stage: str, fraction: float) -> None:
         self.query_one("#stage", Static).update(f"{stage} {100 * fraction:.0f} %")
