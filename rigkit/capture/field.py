@@ -5,6 +5,7 @@ front end gets the same answers:
 
 * the frame's EXIF against the frames already taken and the rig profile
   (:func:`rigkit.capture.checks.check_capture`'s rules for the frames present so far);
+* clipped highlights (a saturated sensor leaves nothing to match);
 * the same file taken for two positions (identical content);
 * after the right frame: parallax and a plausible rotation. Left and right views of a
   distant scene differ by a near-similarity (shift, small roll, scale ~1) plus the
@@ -55,6 +56,10 @@ MAX_RIGHT_SCALE_CHANGE = 0.01
 """Left and right views are at the same distance: a scale change beyond this is zoom."""
 _UNCHECKED = frozenset({"capture.no_exif", "capture.focal_unchecked", "capture.size_unchecked"})
 """Capture findings that say something was not recorded, not that it is wrong."""
+CLIP_LEVEL = 0.995
+"""Grey level (fraction of full scale) from which a pixel counts as clipped."""
+MAX_CLIPPED = 0.01
+"""Largest share of clipped pixels before the highlights count as blown."""
 RANGE_FACTOR = 2.0
 """An implied range more than this factor from the profile's nominal range is suspect."""
 
@@ -62,8 +67,8 @@ RANGE_FACTOR = 2.0
 @dataclass(frozen=True)
 class Check:
     """One on-site check's answer: ``ok``, a one-line ``message`` and, when not ok, what
-    to ``redo``. ``code`` is stable for machines (``exif``, ``same_frame``, ``parallax``,
-    ``rotation``, ``scale``, ``magnification``, ``match``)."""
+    to ``redo``. ``code`` is stable for machines (``exif``, ``exposure``, ``same_frame``,
+    ``parallax``, ``rotation``, ``scale``, ``magnification``, ``match``)."""
 
     code: str
     ok: bool
@@ -192,6 +197,21 @@ def exif_check(session: Session, position: str) -> Check:
     return Check("exif", True, f"EXIF agrees with the other frames and the profile{note}")
 
 
+def exposure_check(session: Session, frame: Frame) -> Check:
+    """Clipped highlights: where the sensor saturated there is no texture to match, and
+    a frame too bright for one position is so for all (they must share the exposure)."""
+    path = session.path / frame.file
+    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
+    clipped = float(np.mean(grey >= CLIP_LEVEL))
+    if clipped <= MAX_CLIPPED:
+        return Check("exposure", True, f"highlights: {100 * clipped:.2f} % clipped")
+    return Check(
+        "exposure", False, f"{100 * clipped:.1f} % of the frame is clipped (blown highlights)",
+        "lower the exposure and take the frames again from the left position (all three "
+        "must share it)",
+    )
+
+
 def same_frame_check(session: Session, position: str) -> Check | None:
     """A failed check when the position's newest frame is byte for byte another
     position's frame; None otherwise."""
@@ -270,7 +290,8 @@ def _round_range(z: float) -> str:
 
 def onsite_checks(session: Session, position: str) -> list[Check]:
     """Every check for the newest frame of ``position`` (which must have one)."""
-    checks = [exif_check(session, position)]
+    checks = [exif_check(session, position),
+              exposure_check(session, frames_at(session, position)[-1])]
     same = same_frame_check(session, position)
     if same is not None:
         return [*checks, same]

@@ -164,3 +164,16 @@ def test_a_device_reading_is_recorded_with_its_source_and_frame() -> None:
     assert recorded.source == "trupulse:sim://trupulse"
     assert recorded.raw is not None and recorded.raw.startswith("$PLTIT,HV,")
     assert recorded.time_utc.endswith("Z") and len(recorded.time_utc) == 20
+
+
+def test_exposure_check_catches_blown_highlights(tmp_path: Path) -> None:
+    from rigkit.capture.field import exposure_check
+
+    session = create_session(tmp_path / "s", SYNTHETIC)
+    session = add_position_frame(session, "left", _png(tmp_path / "ok.png", 0.9 * texture()))
+    assert exposure_check(session, frames_at(session, "left")[-1]).ok
+    blown = texture()
+    blown[:40] = 255  # the top sixth saturated
+    session = add_position_frame(session, "left", _png(tmp_path / "blown.png", blown))
+    check = exposure_check(session, frames_at(session, "left")[-1])
+    assert not check.ok and "clipped" in check.message and "lower the exposure" in check.redo
