@@ -80,9 +80,9 @@ class Check:
 class ViewMap:
     """How another view maps onto the left one, in full-resolution pixels.
 
-    ``scale`` (other / left image size of the same object), ``roll_deg`` (the scene
+    ``scale`` (other / left image size of the same object) and ``roll_deg`` (the scene
     appears turned clockwise on screen by this much in the other view, degrees, image y
-    down), ``parallax_px`` (spread of the
+    down) are the homography's at the image centre; ``parallax_px`` (spread of the
     residual after the best similarity: 10th to 90th percentile of its x component, px
     of the full image), ``matches`` (sub-pixel tracks used).
     """
@@ -158,13 +158,34 @@ def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0) -> Vi
         similarity = matches.affine
     residual = b - (a @ similarity[:, :2].T + similarity[:, 2])
     low, high = np.percentile(residual[:, 0], [10, 90])
+    centre = ((left.shape[1] - 1) / 2.0, (left.shape[0] - 1) / 2.0)
+    local = _local_linear(a, b, centre, similarity[:, :2])
     return ViewMap(
-        scale=float(math.hypot(similarity[0, 0], similarity[1, 0])),
-        roll_deg=float(math.degrees(math.atan2(similarity[1, 0], similarity[0, 0]))),
+        scale=float(math.sqrt(abs(np.linalg.det(local)))),
+        roll_deg=float(math.degrees(math.atan2(local[1, 0] - local[0, 1],
+                                               local[0, 0] + local[1, 1]))),
         parallax_px=float(high - low) * reduction,
         matches=len(a),
         reduction=reduction,
     )
+
+
+def _local_linear(a: np.ndarray, b: np.ndarray, point: tuple[float, float],
+                  fallback: np.ndarray) -> np.ndarray:
+    """(2, 2) derivative at ``point`` (px) of the homography from points ``a`` to ``b``
+    ((N, 2) each). A camera tilted between positions adds keystone: the scale then grows
+    across the image by ~tilt x offset / f, a few 1e-4, as much as the back view's whole
+    magnification signal (1 - m ~ C_lb / z ~ 7e-3 ... 1e-3). The homography models it;
+    at the image centre (near the principal point) keystone adds no scale."""
+    homography, _ = cv2.findHomography(a, b, cv2.LMEDS)
+    if homography is None:
+        return fallback
+    x, y = point
+    w = homography[2, 0] * x + homography[2, 1] * y + homography[2, 2]
+    u = (homography[0, 0] * x + homography[0, 1] * y + homography[0, 2]) / w
+    v = (homography[1, 0] * x + homography[1, 1] * y + homography[1, 2]) / w
+    top = homography[:2, :2] - np.outer([u, v], homography[2, :2])
+    return np.asarray(top / w, dtype=np.float64)
 
 
 def range_from_magnification(magnification: float, baseline_lb_m: float) -> float:

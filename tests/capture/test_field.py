@@ -177,3 +177,30 @@ def test_exposure_check_catches_blown_highlights(tmp_path: Path) -> None:
     session = add_position_frame(session, "left", _png(tmp_path / "blown.png", blown))
     check = exposure_check(session, frames_at(session, "left")[-1])
     assert not check.ok and "clipped" in check.message and "lower the exposure" in check.redo
+
+
+@pytest.mark.parametrize(("baseline_m", "moved"), [(2.0, True), (0.001, False)])
+def test_parallax_check_on_rendered_views(baseline_m: float, moved: bool) -> None:
+    """A rendered scene seen from 2 m to the right has parallax; seen from the same
+    place with the camera turned (baseline 1 mm), it has none."""
+    from rigkit.synth import SynthParams, generate_scene
+    from rigkit.synth.render import expose, render_view
+
+    scene = generate_scene(SynthParams(width=512, height=384, baseline_lr_m=baseline_m), 7)
+    left, right = (expose(scene, v, render_view(scene, v)[0]).astype(np.float32)
+                   for v in ("left", "right"))
+    failed = _failed(right_checks(map_views(left, right)))
+    assert ("parallax" not in failed) == moved
+
+
+def test_back_magnification_gives_the_range_of_a_rendered_scene() -> None:
+    from rigkit.synth import SynthParams, generate_scene
+    from rigkit.synth.render import expose, render_view
+
+    scene = generate_scene(SynthParams(width=512, height=384), 7)
+    (left, depth), (back, _) = (render_view(scene, v) for v in ("left", "back"))
+    view = map_views(expose(scene, "left", left).astype(np.float32),
+                     expose(scene, "back", back).astype(np.float32))
+    true_z = float(np.nanmedian(depth))
+    assert range_from_magnification(view.scale, 2.0) == pytest.approx(true_z, rel=0.1)
+    assert not _failed(back_checks(view, load_rig(SYNTHETIC)))
