@@ -149,6 +149,10 @@ class StartScreen(Screen[None]):
             table.add_row(session.name, next_step(session), str(frames),
                           str(len(session.targets)), key=str(folder))
 
+    def key_escape(self) -> None:
+        """Leave the new-session box: keys (q included) go to the list again."""
+        self.query_one(DataTable).focus()
+
     def action_open(self) -> None:
         table = self.query_one(DataTable)
         if table.row_count == 0:
