@@ -166,3 +166,23 @@ def runs(session: Path) -> set[str]:
     """The run ids in a session's comparisons log."""
     log = session / "comparisons.csv"
     return {row.run_id for row in read_rows(log)} if log.is_file() else set()
+
+
+@synchronous
+async def test_start_screen_opens_a_session_or_starts_one(demo: Demo) -> None:
+    app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("tab", *"ridge-9 nowhere.yaml", "enter")
+        assert "nowhere.yaml" in text(app, "#message")
+        assert not (demo.capture / "ridge-9").exists()
+        app.screen.query_one("#new").value = ""
+        await pilot.press(*f"ridge-9 {demo.rig}", "enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "the new session's rig")
+    assert load_session(demo.capture / "ridge-9").rig().name.startswith("synthetic")
+    app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
+    async with app.run_test(size=SIZE) as pilot:
+        table = app.screen.query_one("#sessions")
+        assert table.row_count == 2  # demo and ridge-9, sorted by name
+        await pilot.press("down", "enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "ridge-9 opened")
+        assert app.session is not None and app.session.name == "ridge-9"
