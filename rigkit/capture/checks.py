@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 
@@ -52,7 +52,13 @@ def check_capture(profile: RigProfile, paths: Sequence[str | Path]) -> list[Find
     """
     if len(paths) != len(CAMERA_ROLES):
         raise InputError(f"a capture is three images (left, right, back), got {len(paths)}")
-    frames = {role: read_exif(path) for role, path in zip(CAMERA_ROLES, paths, strict=True)}
+    return check_exif(profile, dict(zip(CAMERA_ROLES, paths, strict=True)))
+
+
+def check_exif(profile: RigProfile, paths: Mapping[str, str | Path]) -> list[Finding]:
+    """:func:`check_capture`'s rules for the frames taken so far (role -> path, any of
+    left, right and back), as the field TUI checks each frame as it arrives."""
+    frames = {role: read_exif(path) for role, path in paths.items()}
     findings = [
         Finding("capture.no_exif", f"{_frame(role, info)}: no EXIF found; nothing checked", role)
         for role, info in frames.items()

@@ -1,0 +1,334 @@
+"""On-site checks of a capture as it is taken, frame by frame, at reduced resolution.
+
+What the field TUI (``rigkit field``) shows after every frame, computed here so that any
+front end gets the same answers:
+
+* the frame's EXIF against the frames already taken and the rig profile
+  (:func:`rigkit.capture.checks.check_capture`'s rules for the frames present so far);
+* clipped highlights (a saturated sensor leaves nothing to match);
+* the same file taken for two positions (identical content);
+* after the right frame: parallax and a plausible rotation. Left and right views of a
+  distant scene differ by a near-similarity (shift, small roll, scale ~1) plus the
+  depth-dependent parallax; a similarity fitted to sub-pixel matches leaves that
+  parallax as residual. No residual means the tripod was not moved (a pure rotation of
+  a telephoto camera is a similarity to a small fraction of a pixel) or the same view
+  was taken twice;
+* after the back frame: its magnification m against the left view, below 1 because the
+  back camera is ``C_lb`` behind, and the range it implies, z = m C_lb / (1 - m) (an
+  object at depth z from the left camera is at z + C_lb from the back one; the paper's
+  Sec. 3.3 resolves the depth ambiguity with this scale).
+
+Sessions currently hold one frame per position; :func:`frames_at` and
+:func:`add_position_frame` are the one place that knows it (a burst replaces the
+position's frame with the newest, every file staying in ``raw/``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from rigkit.capture.actions import add_frame
+from rigkit.capture.checks import check_exif
+from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
+from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
+from rigkit.errors import RigkitError
+from rigkit.pipeline.features import match_views
+from rigkit.rangefinder.framing import Reading, escape_bytes
+from rigkit.rig.profile import RigProfile
+
+CHECK_SIDE_PX = 1024
+"""Longest side of the reduced images the on-site checks work on, px."""
+MIN_PARALLAX_PX = 0.4
+"""Least parallax spread (10th to 90th percentile of the residual), in check-image px, for
+the right view to count as taken from another place: a camera turned on its tripod
+left ~0.2 px (tracking and sensor noise) in synthetic tests, a 2 m move at 300 m 0.75 px
+at 384 px wide and far more at full size."""
+MAX_ROLL_DEG = 10.0
+"""Largest plausible roll between two positions; more means a camera turned on its side."""
+MAX_RIGHT_SCALE_CHANGE = 0.01
+"""Left and right views are at the same distance: a scale change beyond this is zoom."""
+_UNCHECKED = frozenset({"capture.no_exif", "capture.focal_unchecked", "capture.size_unchecked"})
+"""Capture findings that say something was not recorded, not that it is wrong."""
+CLIP_LEVEL = 0.995
+"""Grey level (fraction of full scale) from which a pixel counts as clipped."""
+MAX_CLIPPED = 0.01
+"""Largest share of clipped pixels before the highlights count as blown."""
+RANGE_FACTOR = 2.0
+"""An implied range more than this factor from the profile's nominal range is suspect."""
+
+
+@dataclass(frozen=True)
+class Check:
+    """One on-site check's answer: ``ok``, a one-line ``message`` and, when not ok, what
+    to ``redo``. ``code`` is stable for machines (``exif``, ``exposure``, ``same_frame``,
+    ``parallax``, ``rotation``, ``scale``, ``magnification``, ``match``)."""
+
+    code: str
+    ok: bool
+    message: str
+    redo: str = ""
+
+
+@dataclass(frozen=True)
+class ViewMap:
+    """How another view maps onto the left one, in full-resolution pixels.
+
+    ``scale`` (other / left image size of the same object) and ``roll_deg`` (the scene
+    appears turned clockwise on screen by this much in the other view, degrees, image y
+    down) are the homography's at the image centre; ``parallax_px`` (spread of the
+    residual after the best similarity: 10th to 90th percentile of its x component, px
+    of the full image), ``matches`` (sub-pixel tracks used).
+    """
+
+    scale: float
+    roll_deg: float
+    parallax_px: float
+    matches: int
+    reduction: float
+
+
+# -- one place that knows how many frames a position holds -------------------------------
+
+
+def frames_at(session: Session, position: str) -> tuple[Frame, ...]:
+    """The frames recorded for ``position``, oldest first (empty if none yet)."""
+    frame = session.frames.get(position)
+    return () if frame is None else (frame,)
+
+
+def add_position_frame(session: Session, position: str, path: Path) -> Session:
+    """Record ``path`` as a frame of ``position`` (copied into ``raw/``, never moved)."""
+    return add_frame(session, position, path, replace_existing=position in session.frames)
+
+
+def reading_from_device(reading: Reading, source: str) -> LaserReading:
+    """A rangefinder's reading as the session records it; ``source`` is
+    ``<protocol>:<port>``."""
+    return LaserReading(
+        slope_distance_m=reading.slope_distance_m,
+        time_utc=datetime.fromtimestamp(reading.timestamp, UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        source=source,
+        inclination_deg=reading.inclination_deg,
+        raw=escape_bytes(reading.raw),
+    )
+
+
+def next_step(session: Session) -> str:
+    """Where a capture stands: the first position without a frame, then ``targets``
+    while no target has a reading, then ``process``."""
+    for position in POSITIONS:
+        if not frames_at(session, position):
+            return position
+    if not any(target.readings for target in session.targets):
+        return "targets"
+    return "process"
+
+
+# -- checks ---------------------------------------------------------------------------------
+
+
+def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX
+                ) -> tuple[np.ndarray, float]:
+    """A frame as (h, w) float32 grey in [0, 255], its longest side at most ``side_px``,
+    and the reduction factor (full-resolution px per check px, >= 1)."""
+    path = session.path / frame.file
+    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
+    image = to_pipeline([grey], linear=is_raw(path))[0]
+    reduction = max(1.0, max(image.shape) / side_px)
+    if reduction > 1.0:
+        size = (round(image.shape[1] / reduction), round(image.shape[0] / reduction))
+        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    return image, reduction
+
+
+def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0) -> ViewMap:
+    """Fit a similarity (scale, roll, shift) from ``left`` to ``other`` (check images,
+    (h, w) float32) and measure what it leaves; PipelineError if they do not match."""
+    matches = match_views(left, other, "left/other", n_points=1500)
+    a, b = matches.left.astype(np.float32), matches.other.astype(np.float32)
+    similarity, _ = cv2.estimateAffinePartial2D(a, b, method=cv2.LMEDS)
+    if similarity is None:
+        similarity = matches.affine
+    residual = b - (a @ similarity[:, :2].T + similarity[:, 2])
+    low, high = np.percentile(residual[:, 0], [10, 90])
+    centre = ((left.shape[1] - 1) / 2.0, (left.shape[0] - 1) / 2.0)
+    local = _local_linear(a, b, centre, similarity[:, :2])
+    return ViewMap(
+        scale=float(math.sqrt(abs(np.linalg.det(local)))),
+        roll_deg=float(math.degrees(math.atan2(local[1, 0] - local[0, 1],
+                                               local[0, 0] + local[1, 1]))),
+        parallax_px=float(high - low) * reduction,
+        matches=len(a),
+        reduction=reduction,
+    )
+
+
+def _local_linear(a: np.ndarray, b: np.ndarray, point: tuple[float, float],
+                  fallback: np.ndarray) -> np.ndarray:
+    """(2, 2) derivative at ``point`` (px) of the homography from points ``a`` to ``b``
+    ((N, 2) each). A camera tilted between positions adds keystone: the scale then grows
+    across the image by ~tilt x offset / f, a few 1e-4, as much as the back view's whole
+    magnification signal (1 - m ~ C_lb / z ~ 7e-3 ... 1e-3). The homography models it;
+    at the image centre (near the principal point) keystone adds no scale."""
+    homography, _ = cv2.findHomography(a, b, cv2.LMEDS)
+    if homography is None:
+        return fallback
+    x, y = point
+    w = homography[2, 0] * x + homography[2, 1] * y + homography[2, 2]
+    u = (homography[0, 0] * x + homography[0, 1] * y + homography[0, 2]) / w
+    v = (homography[1, 0] * x + homography[1, 1] * y + homography[1, 2]) / w
+    top = homography[:2, :2] - np.outer([u, v], homography[2, :2])
+    return np.asarray(top / w, dtype=np.float64)
+
+
+def range_from_magnification(magnification: float, baseline_lb_m: float) -> float:
+    """Depth z (m) at which the back view, ``baseline_lb_m`` behind, is ``magnification``
+    times the left view's size: z = m C_lb / (1 - m); inf when m >= 1."""
+    if magnification >= 1.0:
+        return math.inf
+    return magnification * baseline_lb_m / (1.0 - magnification)
+
+
+def exif_check(session: Session, position: str) -> Check:
+    """The position's frame's EXIF against the other frames taken and the profile.
+
+    Fields the camera did not record are noted, not failed; a rendered frame without
+    any EXIF passes with a note that nothing was checked.
+    """
+    paths = {pos: session.path / frames_at(session, pos)[-1].file
+             for pos in POSITIONS if frames_at(session, pos)}
+    findings = [f for f in check_exif(session.rig(), paths) if f.frame in (position, None)]
+    problems = [f for f in findings if f.code not in _UNCHECKED]
+    if problems:
+        return Check(
+            "exif", False, "; ".join(f.message for f in problems),
+            "set the camera back to the same zoom, exposure and ISO, and take this frame again",
+        )
+    if any(f.code == "capture.no_exif" for f in findings):
+        return Check("exif", True, "no EXIF in this frame (rendered?): settings not checked")
+    missing = sorted({f.field or "" for f in findings})
+    note = f" (not recorded: {', '.join(missing)})" if missing else ""
+    return Check("exif", True, f"EXIF agrees with the other frames and the profile{note}")
+
+
+def exposure_check(session: Session, frame: Frame) -> Check:
+    """Clipped highlights: where the sensor saturated there is no texture to match, and
+    a frame too bright for one position is so for all (they must share the exposure)."""
+    path = session.path / frame.file
+    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
+    clipped = float(np.mean(grey >= CLIP_LEVEL))
+    if clipped <= MAX_CLIPPED:
+        return Check("exposure", True, f"highlights: {100 * clipped:.2f} % clipped")
+    return Check(
+        "exposure", False, f"{100 * clipped:.1f} % of the frame is clipped (blown highlights)",
+        "lower the exposure and take the frames again from the left position (all three "
+        "must share it)",
+    )
+
+
+def same_frame_check(session: Session, position: str) -> Check | None:
+    """A failed check when the position's newest frame is byte for byte another
+    position's frame; None otherwise."""
+    frame = frames_at(session, position)[-1]
+    for other in POSITIONS:
+        if other != position and any(f.sha256 == frame.sha256 for f in frames_at(session, other)):
+            return Check(
+                "same_frame", False,
+                f"the {position} frame {frame.file} is the same file as the {other} frame",
+                f"take a new {position} frame from the {position} position",
+            )
+    return None
+
+
+def right_checks(view: ViewMap) -> list[Check]:
+    """Parallax, roll and scale of the right view against the left one."""
+    move = "move the tripod C_lr to the right of the left position and take the right frame"
+    parallax_ok = view.parallax_px >= MIN_PARALLAX_PX * view.reduction
+    checks = [
+        Check("parallax", True, f"parallax {view.parallax_px:.1f} px across the scene")
+        if parallax_ok else Check(
+            "parallax", False,
+            f"no parallax ({view.parallax_px:.2f} px): the tripod was not moved, or the "
+            "same view was taken twice", move,
+        ),
+        _roll_check(view, "right"),
+    ]
+    if abs(view.scale - 1.0) > MAX_RIGHT_SCALE_CHANGE:
+        checks.append(Check(
+            "scale", False,
+            f"right view {view.scale:.4f}× the left one: the zoom changed",
+            "set the zoom back to the left frame's and take the right frame again",
+        ))
+    return checks
+
+
+def back_checks(view: ViewMap, profile: RigProfile) -> list[Check]:
+    """Magnification of the back view (< 1) and the range it implies."""
+    c_lb = profile.baseline_lb.value_m
+    checks = [_roll_check(view, "back")]
+    if view.scale >= 1.0:
+        checks.append(Check(
+            "magnification", False,
+            f"back view {view.scale:.4f}×: not smaller than the left view",
+            f"take the back frame {c_lb:g} m behind the left position, same zoom",
+        ))
+        return checks
+    z = range_from_magnification(view.scale, c_lb)
+    text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {c_lb:.1f} m"
+    nominal = profile.nominal_range_m
+    if nominal is not None and not nominal / RANGE_FACTOR <= z <= nominal * RANGE_FACTOR:
+        checks.append(Check(
+            "magnification", False, f"{text}, far from the planned {nominal:g} m",
+            f"check that the back position is {c_lb:g} m behind the left one and the zoom "
+            "is unchanged, then take the back frame again",
+        ))
+    else:
+        checks.append(Check("magnification", True, text))
+    return checks
+
+
+def _roll_check(view: ViewMap, position: str) -> Check:
+    if abs(view.roll_deg) <= MAX_ROLL_DEG:
+        return Check("rotation", True, f"{position} view rolled {view.roll_deg:+.2f} deg")
+    return Check(
+        "rotation", False,
+        f"{position} view rolled {view.roll_deg:+.1f} deg against the left one",
+        f"level the camera as for the left frame and take the {position} frame again",
+    )
+
+
+def _round_range(z: float) -> str:
+    """A range to two significant figures, as the magnification fixes it (~1 %)."""
+    return f"{float(f'{z:.2g}'):g}" if z >= 100 else f"{z:.0f}"
+
+
+def onsite_checks(session: Session, position: str) -> list[Check]:
+    """Every check for the newest frame of ``position`` (which must have one)."""
+    checks = [exif_check(session, position),
+              exposure_check(session, frames_at(session, position)[-1])]
+    same = same_frame_check(session, position)
+    if same is not None:
+        return [*checks, same]
+    if position == "left" or not frames_at(session, "left"):
+        return checks
+    left, reduction = check_image(session, frames_at(session, "left")[-1])
+    other, _ = check_image(session, frames_at(session, position)[-1])
+    try:
+        view = map_views(left, other, reduction)
+    except RigkitError as exc:
+        return [*checks, Check("match", False, str(exc),
+                               f"aim at the left frame's scene and take the {position} frame")]
+    if position == "right":
+        return [*checks, *right_checks(view)]
+    return [*checks, *back_checks(view, session.rig())]
+
+
+def all_ok(checks: Sequence[Check]) -> bool:
+    return all(check.ok for check in checks)

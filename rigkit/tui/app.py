@@ -1,0 +1,183 @@
+"""The field TUI's application: session state, navigation, and the background workers
+that watch the card folder and ingest frames.
+
+Every change goes through the session API (:mod:`rigkit.capture`) as it is made, so the
+session folder is always up to date: quitting or a crash loses nothing, and starting
+``rigkit field`` on the session again opens the step it stopped at
+(:func:`rigkit.capture.field.next_step`).
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+from textual import work
+from textual.app import App
+from textual.binding import Binding
+from textual.theme import Theme
+
+from rigkit.capture import Session, load_session
+from rigkit.capture.field import (
+    add_position_frame,
+    check_image,
+    frames_at,
+    next_step,
+    onsite_checks,
+)
+from rigkit.errors import RigkitError
+from rigkit.tui.config import FieldConfig
+from rigkit.tui.screens import (
+    PositionScreen,
+    ProcessScreen,
+    RigScreen,
+    StartScreen,
+    TargetsScreen,
+)
+from rigkit.tui.watch import arrivals
+
+# High contrast for sunlight: white on black, saturated accents.
+FIELD_THEME = Theme(
+    name="field-contrast",
+    primary="#ffd700",
+    secondary="#00d7ff",
+    accent="#ff5fff",
+    foreground="#ffffff",
+    background="#000000",
+    surface="#000000",
+    panel="#1c1c1c",
+    success="#00ff5f",
+    warning="#ffaf00",
+    error="#ff3030",
+    dark=True,
+)
+
+STEPS = ("rig", "left", "right", "back", "targets", "process")
+
+
+class FieldApp(App[None]):
+    """``rigkit field``: the guided three-position capture."""
+
+    TITLE = "rigkit field"
+    CSS_PATH = "field.tcss"
+    BINDINGS = [Binding("q", "quit_field", "quit", priority=False)]
+    ENABLE_COMMAND_PALETTE = False
+    AUTO_FOCUS = None  # keys go to the screen; an entry box takes focus when opened
+
+    def __init__(self, config: FieldConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.session: Session | None = None
+        self.stop = threading.Event()
+
+    # -- start and navigation -----------------------------------------------------------
+
+    def on_mount(self) -> None:
+        self.register_theme(FIELD_THEME)
+        self.theme = FIELD_THEME.name
+        watch = self.config.demo.card if self.config.demo else self.config.watch
+        if watch is not None:
+            self.watch_folder(watch)
+        if self.config.session is not None:
+            self.open_session(load_session(self.config.session))
+        else:
+            self.push_screen(StartScreen())
+
+    def open_session(self, session: Session) -> None:
+        """Show ``session`` where it stopped: the rig first while it has no frame yet."""
+        self.session = session
+        self.sub_title = session.name
+        step = next_step(session)
+        self.goto("rig" if step == "left" else step, resume=True)
+
+    def goto(self, step: str, resume: bool = False) -> None:
+        """Replace the current step's screen with ``step``'s (``resume``: opening a
+        session, so the process step shows its latest run rather than running again)."""
+        screen = (
+            RigScreen() if step == "rig"
+            else TargetsScreen() if step == "targets"
+            else ProcessScreen(resume) if step == "process"
+            else PositionScreen(step)
+        )
+        if len(self.screen_stack) > 1:
+            self.switch_screen(screen)
+        else:
+            self.push_screen(screen)
+
+    def step_after(self, step: str, offset: int) -> str | None:
+        index = STEPS.index(step) + offset
+        return STEPS[index] if 0 <= index < len(STEPS) else None
+
+    def set_session(self, session: Session) -> None:
+        self.session = session
+
+    def action_quit_field(self) -> None:
+        """Quit: everything is already saved; stop the watcher and the workers."""
+        self.stop.set()
+        self.exit()
+
+    def on_unmount(self) -> None:
+        self.stop.set()
+
+    # -- frames ---------------------------------------------------------------------------
+
+    @work(thread=True, group="watch")
+    def watch_folder(self, folder: Path) -> None:
+        """Ingest each frame that arrives in ``folder`` into the position on screen; when
+        the folder goes away (card removed), wait for it to come back."""
+        while not self.stop.is_set():
+            if folder.is_dir():
+                for path in arrivals(folder, self.stop, self.config.settle_s):
+                    self.arrived(path)
+                if not self.stop.is_set():
+                    self.call_from_thread(
+                        self.notify, f"{folder} is gone (card removed?); watching again "
+                        "when it is back", severity="warning")
+            self.stop.wait(1.0)
+
+    def arrived(self, path: Path) -> None:
+        """A complete new file in the watched folder (in the watcher's thread)."""
+        position = self.call_from_thread(self.current_position)
+        if position is None:
+            self.call_from_thread(self.notify, f"{path.name} arrived; open a position to add "
+                                  "it", severity="warning")
+        else:
+            self.ingest(path, position)
+
+    def current_position(self) -> str | None:
+        screen = self.screen
+        return screen.position if isinstance(screen, PositionScreen) else None
+
+    @work(thread=True, group="ingest")
+    def ingest_file(self, path: Path, position: str) -> None:
+        """A file named by hand (the path entry), ingested like an arrival."""
+        self.ingest(path, position)
+
+    def ingest(self, path: Path, position: str) -> None:
+        """Copy ``path`` into the session for ``position``, then run its on-site checks
+        (blocking; called from worker threads)."""
+        assert self.session is not None
+        try:
+            session = add_position_frame(self.session, position, path)
+        except RigkitError as exc:
+            self.call_from_thread(self.on_position, position, "show_error", str(exc))
+            return
+        self.call_from_thread(self.set_session, session)
+        self.call_from_thread(self.on_position, position, "show_added", path.name)
+        self.check_position(session, position)
+
+    def check_position(self, session: Session, position: str) -> None:
+        """Run the on-site checks of ``position``'s newest frame and show them (blocking)."""
+        try:
+            checks = onsite_checks(session, position)
+            image, _ = check_image(session, frames_at(session, position)[-1])
+        except RigkitError as exc:
+            self.call_from_thread(self.on_position, position, "show_error", str(exc))
+            return
+        self.call_from_thread(self.on_position, position, "show_checks", checks, image)
+
+    def on_position(self, position: str, method: str, *args: object) -> None:
+        """Call ``method`` of ``position``'s screen with ``args``, if it is on screen."""
+        screen = self.screen
+        if isinstance(screen, PositionScreen) and screen.position == position:
+            getattr(screen, method)(*args)

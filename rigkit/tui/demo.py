@@ -1,0 +1,104 @@
+"""``rigkit field --demo``: the whole field flow with no hardware.
+
+A small synthetic scene (:mod:`rigkit.synth`) is rendered into a temporary folder; a
+simulated camera writes its frames one at a time into a watched "card" folder, in
+pieces as a real card or tethering tool does; a simulated TruPulse
+(:mod:`rigkit.rangefinder.sim`) answers with the scene's true range at the marked pixel
+plus 5 cm of noise.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from rigkit.core.files import write_text
+from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
+from rigkit.synth.session import rig_for_scene
+
+DEMO_SIZE = (512, 384)
+"""Demo frame size (width, height), px: small, so the checks and processing take seconds."""
+DEMO_SEED = 7
+LASER_NOISE_M = 0.05
+SHOT_PIECES = 4
+
+
+@dataclass(frozen=True)
+class Demo:
+    """The demo's folders: ``scene`` (rendered frames and ground truth), ``card`` (the
+    watched folder frames arrive in), ``capture`` (sessions), ``rig`` (its profile)."""
+
+    root: Path
+    seed: int = DEMO_SEED
+    shot_s: float = 0.8
+    """Seconds between the simulated camera's pieces of a file and the laser's shots."""
+
+    @property
+    def scene(self) -> Path:
+        return self.root / "scene"
+
+    @property
+    def card(self) -> Path:
+        return self.root / "card"
+
+    @property
+    def capture(self) -> Path:
+        return self.root / "capture"
+
+    @property
+    def rig(self) -> Path:
+        return self.root / "rig.yaml"
+
+    @property
+    def session(self) -> Path:
+        return self.capture / "demo"
+
+    def shoot(self, position: str, number: int) -> Path:
+        """Write ``position``'s rendered frame into the card as ``DSCN<number>.PNG`` in
+        pieces, ``shot_s / 8`` seconds apart (blocking). Returns the file."""
+        data = (self.scene / f"{position}.png").read_bytes()
+        target = self.card / f"DSCN{number:04d}.PNG"
+        step = math.ceil(len(data) / SHOT_PIECES)
+        with target.open("wb") as handle:
+            for start in range(0, len(data), step):
+                handle.write(data[start:start + step])
+                handle.flush()
+                time.sleep(self.shot_s / 8)
+        return target
+
+    def laser_url(self, pixel: tuple[float, float]) -> str:
+        """A simulated TruPulse aimed at ``pixel`` of the left view: it fires every
+        ``shot_s`` seconds and reports the true range there."""
+        return (f"sim://trupulse?distance={true_range_m(self.scene, pixel):.3f}"
+                f"&noise={LASER_NOISE_M}&interval={self.shot_s:g}&inclination=0.5"
+                f"&seed={self.seed}")
+
+
+def true_range_m(scene: Path, pixel: tuple[float, float]) -> float:
+    """Distance from the left camera's centre to the scene point seen at ``pixel``, m
+    (the nearest valid ground-truth depth in a 7 px window)."""
+    truth = load_scene(scene)
+    depth = truth.depth("left")
+    u, v = round(pixel[0]), round(pixel[1])
+    window = depth[max(v - 3, 0):v + 4, max(u - 3, 0):u + 4]
+    z = float(np.nanmedian(window)) if np.isfinite(window).any() else float(np.nanmax(depth))
+    left = truth.cameras["left"]
+    ray = left.rays(np.array([float(pixel[0])]), np.array([float(pixel[1])]))[0]
+    return float(np.linalg.norm(ray * z - left.C))
+
+
+def prepare_demo(root: Path, seed: int = DEMO_SEED, size: tuple[int, int] = DEMO_SIZE,
+                 shot_s: float = 0.8) -> Demo:
+    """Render the demo scene under ``root`` and write its rig profile; returns the folders."""
+    demo = Demo(root, seed, shot_s)
+    scene = generate_scene(SynthParams(width=size[0], height=size[1]), seed)
+    write_scene(scene, demo.scene)
+    demo.card.mkdir(parents=True, exist_ok=True)
+    demo.capture.mkdir(parents=True, exist_ok=True)
+    write_text(demo.rig, yaml.safe_dump(rig_for_scene(scene), sort_keys=False))
+    return demo

@@ -1,0 +1,64 @@
+"""Frames arriving in a watched folder (a card's mount, a tethering tool's download folder).
+
+A file counts once its size has stopped changing for ``settle_s`` seconds (a camera or a
+copy writes it in pieces); files already there when watching starts, hidden files and
+files that are not images are ignored. The files are only read, never moved: ingesting
+copies them into the session (:func:`rigkit.capture.field.add_position_frame`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+from watchfiles import watch
+
+from rigkit.capture.rawio import RAW_SUFFIXES
+
+IMAGE_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".jpg", ".jpeg"}) | RAW_SUFFIXES
+SETTLE_S = 0.6
+"""How long a file's size must stay the same before it counts, seconds."""
+
+
+def is_frame_file(path: Path) -> bool:
+    """An image rigkit can ingest, not hidden (temporary files of copies are)."""
+    return path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith(".")
+
+
+def arrivals(folder: Path, stop: threading.Event, settle_s: float = SETTLE_S,
+             poll: bool = False) -> Iterator[Path]:
+    """Yield each new frame file in ``folder`` (recursively) once it is complete, until
+    ``stop`` is set or the folder is gone (a card unmounted). ``poll`` uses polling
+    instead of OS notifications (network mounts)."""
+    seen = {p for p in folder.rglob("*") if p.is_file()}
+    pending: dict[Path, tuple[int, float]] = {}  # path -> (size, when it was last seen)
+    step_ms = max(50, int(settle_s * 500))
+    for changes in watch(folder, stop_event=stop, debounce=step_ms, step=50,
+                         rust_timeout=step_ms, yield_on_timeout=True, force_polling=poll,
+                         poll_delay_ms=step_ms, raise_interrupt=False):
+        for _, name in changes:
+            path = Path(name)
+            if path not in seen and is_frame_file(path):
+                pending.setdefault(path, (-1, time.monotonic()))
+        yield from _settled(pending, seen, settle_s)
+        if not folder.is_dir():
+            return
+
+
+def _settled(pending: dict[Path, tuple[int, float]], seen: set[Path], settle_s: float
+             ) -> Iterator[Path]:
+    now = time.monotonic()
+    for path, (size, since) in list(pending.items()):
+        try:
+            current = path.stat().st_size
+        except OSError:  # gone again (a temporary file renamed away)
+            del pending[path]
+            continue
+        if current != size or current == 0:
+            pending[path] = (current, now)
+        elif now - since >= settle_s:
+            del pending[path]
+            seen.add(path)
+            yield path

@@ -1,0 +1,206 @@
+"""On-site checks (rigkit.capture.field) against known truth: warped test images with a
+known similarity and parallax, magnification from a known range, sessions in tmp_path."""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from rigkit.capture import create_session, load_session
+from rigkit.capture.field import (
+    MIN_PARALLAX_PX,
+    ViewMap,
+    add_position_frame,
+    back_checks,
+    exif_check,
+    frames_at,
+    map_views,
+    next_step,
+    onsite_checks,
+    range_from_magnification,
+    right_checks,
+    same_frame_check,
+)
+from rigkit.rig import load_rig
+
+ROOT = Path(__file__).resolve().parents[2]
+SYNTHETIC = ROOT / "rigs" / "synthetic.yaml"
+
+
+def texture(width: int = 320, height: int = 240, seed: int = 0) -> np.ndarray:
+    """(H, W) float32 in [0, 255]: smoothed noise, trackable everywhere."""
+    rng = np.random.default_rng(seed)
+    noise = cv2.GaussianBlur(rng.random((height, width)).astype(np.float32), (0, 0), 1.5)
+    return cv2.normalize(noise, None, 0, 255, cv2.NORM_MINMAX)
+
+
+def similarity(image: np.ndarray, scale: float, roll_deg: float, shift: tuple[float, float]
+               ) -> np.ndarray:
+    h, w = image.shape
+    m = cv2.getRotationMatrix2D((w / 2, h / 2), roll_deg, scale)
+    m[:, 2] += shift
+    return cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+
+
+def test_range_from_magnification_inverts_the_back_geometry() -> None:
+    for z in (150.0, 290.0, 500.0):
+        m = z / (z + 2.0)  # the back camera is 2 m further away
+        assert range_from_magnification(m, 2.0) == pytest.approx(z)
+    assert range_from_magnification(1.0, 2.0) == math.inf
+
+
+def test_map_views_recovers_a_known_similarity_with_no_parallax() -> None:
+    left = texture()
+    other = similarity(left, 0.99, 2.0, (4.0, -3.0))
+    view = map_views(left, other, reduction=4.0)
+    assert view.scale == pytest.approx(0.99, abs=3e-4)
+    # getRotationMatrix2D turns the content counter-clockwise on screen: roll is -2 deg.
+    assert view.roll_deg == pytest.approx(-2.0, abs=0.02)
+    assert view.parallax_px < 0.1 * 4.0
+    assert view.matches > 100
+
+
+def test_map_views_measures_parallax_a_similarity_cannot_explain() -> None:
+    left = texture()
+    h, w = left.shape
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    bulge = 3.0 * np.sin(np.pi * v / h) * np.sin(np.pi * u / w)  # nearer in the middle
+    other = cv2.remap(left, u + bulge, v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    view = map_views(left, other)
+    assert view.parallax_px > MIN_PARALLAX_PX
+    assert view.scale == pytest.approx(1.0, abs=0.01)
+
+
+def _view(scale: float = 1.0, roll: float = 0.5, parallax: float = 3.0) -> ViewMap:
+    return ViewMap(scale=scale, roll_deg=roll, parallax_px=parallax, matches=500, reduction=1.0)
+
+
+def _failed(checks: list) -> dict[str, str]:
+    return {c.code: c.redo for c in checks if not c.ok}
+
+
+def test_right_checks_catch_no_parallax_roll_and_zoom() -> None:
+    assert _failed(right_checks(_view())) == {}
+    failed = _failed(right_checks(_view(scale=1.03, roll=15.0, parallax=0.1)))
+    assert set(failed) == {"parallax", "rotation", "scale"}
+    assert "move the tripod" in failed["parallax"]
+    assert "level the camera" in failed["rotation"]
+
+
+def test_back_checks_give_the_implied_range_and_catch_a_wrong_back_frame() -> None:
+    profile = load_rig(SYNTHETIC)  # C_lb 2 m, nominal 300 m
+    checks = back_checks(_view(scale=0.9931), profile)
+    assert _failed(checks) == {}
+    assert "back view 0.9931× → ~290 m at C_lb = 2.0 m" in [c.message for c in checks]
+    assert "magnification" in _failed(back_checks(_view(scale=1.002), profile))
+    assert "magnification" in _failed(back_checks(_view(scale=0.96), profile))  # ~48 m
+
+
+def _png(path: Path, image: np.ndarray) -> Path:
+    cv2.imwrite(str(path), np.clip(image, 0, 255).astype(np.uint8))
+    return path
+
+
+def _exif_png(path: Path, image: np.ndarray, iso: int) -> Path:
+    pil = pytest.importorskip("PIL.Image")
+    exif = pil.Exif()
+    exif[0x0110] = "synthetic pinhole"
+    exif.get_ifd(0x8769)[0x8827] = iso
+    pil.fromarray(np.clip(image, 0, 255).astype(np.uint8)).save(path, exif=exif)
+    return path
+
+
+def test_session_checks_catch_the_same_frame_twice(tmp_path: Path) -> None:
+    session = create_session(tmp_path / "s", SYNTHETIC)
+    left = _png(tmp_path / "a.png", texture())
+    copy = tmp_path / "b.png"
+    shutil.copy(left, copy)
+    assert next_step(session) == "left"
+    session = add_position_frame(session, "left", left)
+    session = add_position_frame(session, "right", copy)
+    assert next_step(session) == "back"
+    same = same_frame_check(session, "right")
+    assert same is not None and not same.ok and "same file as the left frame" in same.message
+    assert _failed(onsite_checks(session, "right")).keys() == {"same_frame"}
+
+
+def test_a_burst_frame_replaces_the_position_and_keeps_the_file(tmp_path: Path) -> None:
+    session = create_session(tmp_path / "s", SYNTHETIC)
+    first = _png(tmp_path / "one.png", texture(seed=1))
+    second = _png(tmp_path / "two.png", texture(seed=2))
+    session = add_position_frame(session, "left", first)
+    session = add_position_frame(session, "left", second)
+    assert [Path(f.file).name for f in frames_at(load_session(session.path), "left")] == \
+        ["two.png"]
+    assert (session.path / "raw" / "one.png").is_file()
+    assert first.is_file() and second.is_file()  # originals left in place
+
+
+def test_exif_check_names_the_setting_that_changed(tmp_path: Path) -> None:
+    session = create_session(tmp_path / "s", SYNTHETIC)
+    session = add_position_frame(session, "left", _exif_png(tmp_path / "l.png", texture(), 100))
+    assert exif_check(session, "left").ok
+    right = _exif_png(tmp_path / "r.png", similarity(texture(), 1.0, 0.5, (6, 0)), 400)
+    session = add_position_frame(session, "right", right)
+    check = exif_check(session, "right")
+    assert not check.ok and "ISO 400" in check.message and "ISO 100" in check.message
+    assert "ISO" in check.redo
+
+
+def test_a_device_reading_is_recorded_with_its_source_and_frame() -> None:
+    from rigkit.capture.field import reading_from_device
+    from rigkit.rangefinder import open_rangefinder
+
+    with open_rangefinder("sim://trupulse?interval=0.01&distance=296.4", timeout=2) as device:
+        reading = device.read()
+    recorded = reading_from_device(reading, "trupulse:sim://trupulse")
+    assert recorded.slope_distance_m == pytest.approx(296.4)
+    assert recorded.inclination_deg == pytest.approx(1.2)
+    assert recorded.source == "trupulse:sim://trupulse"
+    assert recorded.raw is not None and recorded.raw.startswith("$PLTIT,HV,")
+    assert recorded.time_utc.endswith("Z") and len(recorded.time_utc) == 20
+
+
+def test_exposure_check_catches_blown_highlights(tmp_path: Path) -> None:
+    from rigkit.capture.field import exposure_check
+
+    session = create_session(tmp_path / "s", SYNTHETIC)
+    session = add_position_frame(session, "left", _png(tmp_path / "ok.png", 0.9 * texture()))
+    assert exposure_check(session, frames_at(session, "left")[-1]).ok
+    blown = texture()
+    blown[:40] = 255  # the top sixth saturated
+    session = add_position_frame(session, "left", _png(tmp_path / "blown.png", blown))
+    check = exposure_check(session, frames_at(session, "left")[-1])
+    assert not check.ok and "clipped" in check.message and "lower the exposure" in check.redo
+
+
+@pytest.mark.parametrize(("baseline_m", "moved"), [(2.0, True), (0.001, False)])
+def test_parallax_check_on_rendered_views(baseline_m: float, moved: bool) -> None:
+    """A rendered scene seen from 2 m to the right has parallax; seen from the same
+    place with the camera turned (baseline 1 mm), it has none."""
+    from rigkit.synth import SynthParams, generate_scene
+    from rigkit.synth.render import expose, render_view
+
+    scene = generate_scene(SynthParams(width=512, height=384, baseline_lr_m=baseline_m), 7)
+    left, right = (expose(scene, v, render_view(scene, v)[0]).astype(np.float32)
+                   for v in ("left", "right"))
+    failed = _failed(right_checks(map_views(left, right)))
+    assert ("parallax" not in failed) == moved
+
+
+def test_back_magnification_gives_the_range_of_a_rendered_scene() -> None:
+    from rigkit.synth import SynthParams, generate_scene
+    from rigkit.synth.render import expose, render_view
+
+    scene = generate_scene(SynthParams(width=512, height=384), 7)
+    (left, depth), (back, _) = (render_view(scene, v) for v in ("left", "back"))
+    view = map_views(expose(scene, "left", left).astype(np.float32),
+                     expose(scene, "back", back).astype(np.float32))
+    true_z = float(np.nanmedian(depth))
+    assert range_from_magnification(view.scale, 2.0) == pytest.approx(true_z, rel=0.1)
+    assert not _failed(back_checks(view, load_rig(SYNTHETIC)))
