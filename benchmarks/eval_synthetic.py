@@ -26,6 +26,7 @@ import numpy as np
 
 from rigkit.errors import RigkitError
 from rigkit.pipeline import RigGeometry, estimate_depth
+from rigkit.pipeline.burst import stack_burst
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene
 from rigkit.synth.evaluate import evaluate_scenes, format_table, visible_in_right, write_csv
@@ -71,7 +72,9 @@ def main() -> int:
     ap.add_argument("--corner-distortion", type=float, default=0.0,
                     help="radial distortion, %% of the radius at the image corner (not given "
                     "to the pipeline)")
-    ap.add_argument("--burst", type=int, default=1, help="frames per position")
+    ap.add_argument("--burst", type=int, default=1,
+                    help="frames per position, median-stacked (the time includes loading "
+                    "and stacking)")
     args = ap.parse_args()
     params = scene_params(args)
     coverage = []
@@ -85,8 +88,11 @@ def main() -> int:
             write_scene(generate_scene(params, seed), d)
         truth = load_scene(d)
         rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
-        imgs = [load_grey(truth.image_path(v)) for v in ("left", "right", "back")]
         t0 = time.perf_counter()
+        imgs = [
+            stack_burst([load_grey(p) for p in truth.frame_paths(v)], v)
+            for v in ("left", "right", "back")
+        ]
         try:
             res = estimate_depth(*imgs, rig)
         except RigkitError as exc:

@@ -18,6 +18,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +31,7 @@ from rigkit.capture.frames import load_frames
 from rigkit.capture.session import (
     POSITIONS,
     RESULTS_DIR,
+    Frame,
     Session,
     load_session,
     log_event,
@@ -63,6 +65,12 @@ class Outcome:
     seconds: float
     rows: tuple[Comparison, ...] = ()
     warnings: tuple[str, ...] = field(default=())
+
+
+def _frames_meta(burst: tuple[Frame, ...]) -> Any:
+    """A position's file and hash; a list of them for a burst (as in session.yaml)."""
+    files = [{"file": f.file, "sha256": f.sha256} for f in burst]
+    return files[0] if len(files) == 1 else files
 
 
 # -- one session ----------------------------------------------------------------------------
@@ -130,10 +138,7 @@ def _process_locked(
         "run_id": run_id,
         "rigkit_version": __version__,
         "time_utc": utc_now(),
-        "frames": {
-            pos: {"file": session.frames[pos].file, "sha256": session.frames[pos].sha256}
-            for pos in POSITIONS
-        },
+        "frames": {pos: _frames_meta(session.bursts[pos]) for pos in POSITIONS},
         "rig": {"name": profile.name, "focal_px": rig.focal_px,
                 "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
                 "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},

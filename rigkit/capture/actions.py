@@ -61,7 +61,7 @@ def create_session(
         rig_reference=_reference(rig_path, path),
         rig_sha256=file_sha256(rig_path),
         rig_values=rig_to_dict(profile),
-        frames={},
+        bursts={},
         operator=operator,
         notes=notes,
     )
@@ -99,13 +99,15 @@ def add_frame(
     source: str | Path,
     *,
     replace_existing: bool = False,
+    burst: bool = False,
     origin: str | None = None,
 ) -> Session:
-    """Copy ``source`` into ``raw/`` as the frame for ``position`` and record it.
+    """Copy ``source`` into ``raw/`` as a frame for ``position`` and record it.
 
     The file is copied byte for byte (never moved), hashed, and checked to decode; its
-    EXIF is recorded. An existing frame for the position is only replaced with
-    ``replace_existing``; its file stays in ``raw/``. A file already in ``raw/`` (same
+    EXIF is recorded. A position that already has frames gets this one added to its
+    burst with ``burst``, or has them replaced by it with ``replace_existing`` (their
+    files stay in ``raw/``); otherwise it is refused. A file already in ``raw/`` (same
     name) is never overwritten: identical content is reused, different content refused.
     ``origin`` is what session.yaml records as the frame's ``source``; by default the
     file's absolute path (a file rigkit made itself says so instead, e.g. ``rendered by
@@ -116,12 +118,20 @@ def add_frame(
     source = Path(source)
     if not source.is_file():
         raise InputError(f"{source}: no such file")
-    if position in session.frames and not replace_existing:
+    before = () if replace_existing else session.bursts.get(position, ())
+    if before and not burst:
         raise InputError(
             f"{session.path}: already has a {position} frame "
-            f"({session.frames[position].file}); use --replace to swap it"
+            f"({session.frames[position].file}); use --burst to add to it or --replace "
+            "to swap it"
         )
     sha256 = file_sha256(source)
+    for taken in before:
+        if taken.sha256 == sha256:
+            raise InputError(
+                f"{source}: the same image as {position} frame {taken.file}; a burst needs "
+                "new exposures"
+            )
     # Decode before copying: a file that does not decode never enters raw/. The decoded
     # image is cached by content hash, so processing will not decode it again.
     size = image_size(source, session.path / DERIVED_DIR, sha256)
@@ -136,8 +146,8 @@ def add_frame(
         source=origin or str(source.resolve()),
         exif=exif_fields(exif),
     )
-    _check_same_size(session, frame)
-    updated = replace(session, frames={**session.frames, position: frame})
+    _check_same_size(session, frame, before)
+    updated = replace(session, bursts={**session.bursts, position: (*before, frame)})
     save_session(updated)
     log_event(
         session.path, "add-frame",
@@ -146,9 +156,11 @@ def add_frame(
     return updated
 
 
-def _check_same_size(session: Session, frame: Frame) -> None:
-    for other in session.frames.values():
-        if other.position != frame.position and other.size_px != frame.size_px:
+def _check_same_size(session: Session, frame: Frame, burst: tuple[Frame, ...]) -> None:
+    """All frames must match: those of the other positions and the position's burst."""
+    others = [f for pos, f in session.frames.items() if pos != frame.position]
+    for other in (*others, *burst):
+        if other.size_px != frame.size_px:
             raise InputError(
                 f"{frame.source}: {frame.size_px[0]}x{frame.size_px[1]} px, but the "
                 f"{other.position} frame ({other.file}) is "
@@ -262,18 +274,18 @@ def frame_problems(session: Session) -> list[str]:
     outside the image. Empty when it is ready."""
     problems = []
     for position in POSITIONS:
-        frame = session.frames.get(position)
-        if frame is None:
+        burst = session.bursts.get(position, ())
+        if not burst:
             problems.append(f"no {position} frame")
-            continue
-        path = session.path / frame.file
-        if not path.is_file():
-            problems.append(f"{position} frame {frame.file} is missing")
-        elif file_sha256(path) != frame.sha256:
-            problems.append(
-                f"{position} frame {frame.file} no longer matches the hash recorded at "
-                "ingest (the original was changed)"
-            )
+        for frame in burst:
+            path = session.path / frame.file
+            if not path.is_file():
+                problems.append(f"{position} frame {frame.file} is missing")
+            elif file_sha256(path) != frame.sha256:
+                problems.append(
+                    f"{position} frame {frame.file} no longer matches the hash recorded at "
+                    "ingest (the original was changed)"
+                )
     for target in session.targets:
         try:
             check_target_inside(session, target)

@@ -18,9 +18,8 @@ front end gets the same answers:
   object at depth z from the left camera is at z + C_lb from the back one; the paper's
   Sec. 3.3 resolves the depth ambiguity with this scale).
 
-Sessions currently hold one frame per position; :func:`frames_at` and
-:func:`add_position_frame` are the one place that knows it (a burst replaces the
-position's frame with the newest, every file staying in ``raw/``).
+A position holds one frame or a burst of several; :func:`frames_at` and
+:func:`add_position_frame` are how the field workflow reads and grows it.
 """
 
 from __future__ import annotations
@@ -99,13 +98,16 @@ class ViewMap:
 
 def frames_at(session: Session, position: str) -> tuple[Frame, ...]:
     """The frames recorded for ``position``, oldest first (empty if none yet)."""
-    frame = session.frames.get(position)
-    return () if frame is None else (frame,)
+    return session.bursts.get(position, ())
 
 
 def add_position_frame(session: Session, position: str, path: Path) -> Session:
-    """Record ``path`` as a frame of ``position`` (copied into ``raw/``, never moved)."""
-    return add_frame(session, position, path, replace_existing=position in session.frames)
+    """Record ``path`` as a frame of ``position`` (copied into ``raw/``, never moved): its
+    first, one more of its burst, or - when the position's newest frame failed its
+    on-site checks - the retake that replaces the position's frames (their files stay
+    in ``raw/``)."""
+    retake = bool(frames_at(session, position)) and not all_ok(onsite_checks(session, position))
+    return add_frame(session, position, path, burst=not retake, replace_existing=retake)
 
 
 def reading_from_device(reading: Reading, source: str) -> LaserReading:

@@ -1,4 +1,5 @@
-"""A session's three frames as the pipeline's grey images (RAW or ordinary image files)."""
+"""A session's three positions as the pipeline's grey images (RAW or ordinary image
+files; a position's burst median-stacked into one)."""
 
 from __future__ import annotations
 
@@ -7,16 +8,20 @@ import numpy as np
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Session
 from rigkit.errors import InputError
+from rigkit.pipeline.burst import stack_burst
 
 
 def load_frames(session: Session) -> list[np.ndarray]:
     """Left, right and back as (H, W) float32 grey in [0, 255], ready for the pipeline.
 
     RAW frames are decoded linearly (cached in ``derived/`` by content hash) and share
-    one brightness scale; the three frames must be all RAW or all ordinary images.
+    one brightness scale; the frames must be all RAW or all ordinary images. A burst is
+    aligned and median-stacked (in linear light for RAW) into its position's image.
     """
-    paths = [session.frame_path(position) for position in POSITIONS]
-    kinds = {is_raw(path) for path in paths}
+    for position in POSITIONS:
+        session.frame_path(position)  # InputError naming a missing position
+    every = [session.path / f.file for pos in POSITIONS for f in session.bursts[pos]]
+    kinds = {is_raw(path) for path in every}
     if len(kinds) > 1:
         listed = ", ".join(f"{pos} {session.frames[pos].file}" for pos in POSITIONS)
         raise InputError(
@@ -25,8 +30,14 @@ def load_frames(session: Session) -> list[np.ndarray]:
         )
     cache = session.path / DERIVED_DIR
     cache.mkdir(exist_ok=True)
-    greys = [
-        load_linear_grey(path, cache, session.frames[pos].sha256)
-        for pos, path in zip(POSITIONS, paths, strict=True)
-    ]
+    greys = [_linear_position(session, position) for position in POSITIONS]
     return to_pipeline(greys, linear=kinds == {True})
+
+
+def _linear_position(session: Session, position: str) -> np.ndarray:
+    """A position's frame decoded to linear grey, or its burst stacked."""
+    cache = session.path / DERIVED_DIR
+    frames = [
+        load_linear_grey(session.path / f.file, cache, f.sha256) for f in session.bursts[position]
+    ]
+    return stack_burst(frames, f"{session.path}: {position} burst")

@@ -3,7 +3,8 @@
 Layout of ``capture/<session>/`` (see ``docs/sessions.md``)::
 
     session.yaml      what the session is: rig (reference and a copy of its values),
-                      frames (which file is which position, content hash, EXIF),
+                      frames (which files are which position - one, or a burst of
+                      several - with content hash and EXIF),
                       targets (pixel, window, laser readings), notes, timestamps
     raw/              the original files, copied in byte for byte; rigkit never
                       modifies or deletes anything here
@@ -104,7 +105,12 @@ class Target:
 
 @dataclass(frozen=True)
 class Session:
-    """A session as read from ``session.yaml``; ``path`` is its folder."""
+    """A session as read from ``session.yaml``; ``path`` is its folder.
+
+    ``bursts`` holds each position's frames, oldest first (one, or a burst of several
+    taken against heat shimmer); :attr:`frames` the first of each, which fixes the
+    position's size, EXIF and pixel grid.
+    """
 
     path: Path
     name: str
@@ -112,10 +118,15 @@ class Session:
     rig_reference: str
     rig_sha256: str
     rig_values: Mapping[str, Any] = field(hash=False)
-    frames: Mapping[str, Frame] = field(hash=False)
+    bursts: Mapping[str, tuple[Frame, ...]] = field(hash=False)
     targets: tuple[Target, ...] = ()
     operator: str = ""
     notes: str = ""
+
+    @property
+    def frames(self) -> Mapping[str, Frame]:
+        """The first frame of each position that has one."""
+        return {pos: burst[0] for pos, burst in self.bursts.items() if burst}
 
     @property
     def yaml_path(self) -> Path:
@@ -193,9 +204,7 @@ def _session_from_data(data: Any, path: Path) -> Session:
     rig = rig_key.mapping(top["rig"], required=("reference", "sha256", "values"))
     frames_key = top_key.child("frames")
     frames_data = frames_key.mapping(top["frames"] or {}, required=(), optional=POSITIONS)
-    frames = {
-        pos: _frame(value, frames_key.child(pos), pos) for pos, value in frames_data.items()
-    }
+    bursts = {pos: _burst(v, frames_key.child(pos), pos) for pos, v in frames_data.items()}
     targets_key = top_key.child("targets")
     targets = tuple(
         _target(value, targets_key.item(i))
@@ -211,7 +220,7 @@ def _session_from_data(data: Any, path: Path) -> Session:
         rig_reference=_text(rig["reference"], rig_key.child("reference")),
         rig_sha256=_text(rig["sha256"], rig_key.child("sha256")),
         rig_values=rig["values"],
-        frames=frames,
+        bursts=bursts,
         targets=targets,
         operator=_text(top.get("operator"), top_key.child("operator")),
         notes=_text(top.get("notes"), top_key.child("notes")),
@@ -228,6 +237,15 @@ def _text(value: Any, key: KeyPath) -> str:
 def _numbers(value: Any, key: KeyPath, unit: str) -> tuple[float, float]:
     a, b = key.pair(value, "a, b")
     return key.number(a, unit), key.number(b, unit)
+
+
+def _burst(value: Any, key: KeyPath, position: str) -> tuple[Frame, ...]:
+    """A position's frames: one mapping, or a list of them (a burst)."""
+    if not isinstance(value, list):
+        return (_frame(value, key, position),)
+    if not value:
+        raise key.error("must list at least one frame", value)
+    return tuple(_frame(v, key.item(i), position) for i, v in enumerate(value))
 
 
 def _frame(value: Any, key: KeyPath, position: str) -> Frame:
@@ -308,10 +326,15 @@ def session_to_data(session: Session) -> dict[str, Any]:
         "values": dict(session.rig_values),
     }
     data["frames"] = {
-        pos: _frame_to_data(session.frames[pos]) for pos in POSITIONS if pos in session.frames
+        pos: _burst_to_data(session.bursts[pos]) for pos in POSITIONS if session.bursts.get(pos)
     }
     data["targets"] = [_target_to_data(t) for t in session.targets]
     return data
+
+
+def _burst_to_data(burst: tuple[Frame, ...]) -> Any:
+    """One frame as a mapping (the layout of sessions before bursts), a burst as a list."""
+    return _frame_to_data(burst[0]) if len(burst) == 1 else [_frame_to_data(f) for f in burst]
 
 
 def _frame_to_data(frame: Frame) -> dict[str, Any]:

@@ -12,6 +12,9 @@ EXAMPLE = """example:
   rigkit depth capture/example/left.png capture/example/right.png capture/example/back.png \\
       --rig rigs/example.yaml --out out/example.npy --preview
 
+  rigkit depth l1.png,l2.png,l3.png r1.png,r2.png,r3.png b1.png,b2.png,b3.png --rig RIG \\
+      --out out/burst.npy                  # bursts: aligned and median-stacked per position
+
 writes DEPTH.npy ((H, W) float32, metres, z in the left camera, NaN = no estimate, in the
 original left image's pixel grid), DEPTH.sigma.npy (one standard error, metres),
 DEPTH.json (offset, matches, warps, timings) and with --preview DEPTH.png and
@@ -28,9 +31,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLE,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("left", type=Path, help="left image (PNG, TIFF or JPEG; 8/16-bit)")
-    p.add_argument("right", type=Path, help="right image, same size")
-    p.add_argument("back", type=Path, help="back image, same size")
+    p.add_argument("left", type=_frames,
+                   help="left image (PNG, TIFF or JPEG; 8/16-bit), or a burst as "
+                   "a.png,b.png,... (aligned and median-stacked against heat shimmer)")
+    p.add_argument("right", type=_frames, help="right image or burst, same size")
+    p.add_argument("back", type=_frames, help="back image or burst, same size")
     p.add_argument("--rig", type=Path, help="rig profile YAML (gives f and both baselines)")
     p.add_argument("--focal-px", type=float, help="focal length, px (overrides --rig)")
     p.add_argument("--baseline-lr", type=float, help="left-right baseline C_lr, m")
@@ -42,6 +47,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preview", action="store_true", help="also write colour-mapped PNGs")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=run)
+
+
+def _frames(text: str) -> list[Path]:
+    """One file, or the frames of a burst separated by commas."""
+    return [Path(p) for p in text.split(",") if p]
+
+
+def load_position(paths: list[Path], position: str):  # -> np.ndarray
+    """The image of one position: the file, or its burst stacked."""
+    from rigkit.pipeline.burst import stack_burst
+    from rigkit.pipeline.images import load_grey
+
+    return stack_burst([load_grey(p) for p in paths], f"{position} burst")
 
 
 def rig_geometry(args: argparse.Namespace):  # -> (RigGeometry, PipelineSettings)
@@ -96,14 +114,13 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.core.progress import Progress
     from rigkit.errors import InputError
     from rigkit.pipeline import estimate_depth
-    from rigkit.pipeline.images import load_grey
     from rigkit.reporting.previews import colorize, depth_range
 
     rig, settings = rig_geometry(args)
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
-    left, right, back = (load_grey(p) for p in (args.left, args.right, args.back))
-    task = args.left.name
+    left, right, back = (load_position(getattr(args, p), p) for p in ("left", "right", "back"))
+    task = args.left[0].name
     with Progress("depth", [task], quiet=args.quiet) as progress:
         result = estimate_depth(
             left, right, back, rig, progress=lambda stage, f: progress.update(task, f, stage),
@@ -118,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         f"{stem}.sigma.npy": result.sigma,
     }
     meta = {
-        "inputs": {k: str(getattr(args, k)) for k in ("left", "right", "back")},
+        "inputs": {k: [str(p) for p in getattr(args, k)] for k in ("left", "right", "back")},
         "rig": {
             "focal_px": rig.focal_px,
             "baseline_lr_m": rig.baseline_lr_m,

@@ -43,8 +43,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     frame.add_argument("session", type=Path)
     frame.add_argument("--position", required=True, choices=("left", "right", "back"))
     frame.add_argument("file", type=Path, help="RAW (NEF, DNG, CR2, ...), PNG, TIFF or JPEG")
-    frame.add_argument("--replace", action="store_true",
-                       help="swap an existing frame (its file stays in raw/)")
+    mode = frame.add_mutually_exclusive_group()
+    mode.add_argument("--replace", action="store_true",
+                      help="swap the position's frame(s) for this one (files stay in raw/)")
+    mode.add_argument("--burst", action="store_true",
+                      help="add to the position's burst: several frames, median-stacked "
+                      "against heat shimmer when processed (docs/sessions.md)")
     frame.set_defaults(func=run_add_frame)
 
     target = actions.add_parser("add-target", help="a pixel in the left image and its range")
@@ -89,10 +93,13 @@ def run_add_frame(args: argparse.Namespace) -> int:
     from rigkit.capture import add_frame, load_session
 
     session = add_frame(load_session(args.session), args.position, args.file,
-                        replace_existing=args.replace)
-    frame = session.frames[args.position]
+                        replace_existing=args.replace, burst=args.burst)
+    burst = session.bursts[args.position]
+    frame = burst[-1]
     width, height = frame.size_px
-    print(f"{args.position}: {frame.file} ({width}x{height} px, sha256 {frame.sha256[:12]})")
+    count = f", frame {len(burst)} of the burst" if len(burst) > 1 else ""
+    print(f"{args.position}: {frame.file} ({width}x{height} px, sha256 {frame.sha256[:12]}"
+          f"{count})")
     missing = [p for p in ("left", "right", "back") if p not in session.frames]
     if missing:
         print("still needed: " + ", ".join(missing))
@@ -223,14 +230,15 @@ def _show_text(session: Any) -> str:
                  f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
     lines.append("frames")
     for position in POSITIONS:
-        frame = session.frames.get(position)
-        if frame is None:
+        burst = session.bursts.get(position, ())
+        if not burst:
             lines.append(f"  {position:<5}  (missing)")
-            continue
-        exif = frame.exif
-        shot = ", ".join(str(exif[k]) for k in ("model", "datetime_original") if k in exif)
-        lines.append(f"  {position:<5}  {frame.file}  {frame.size_px[0]}x{frame.size_px[1]}  "
-                     f"sha256 {frame.sha256[:12]}  {shot}".rstrip())
+        for i, frame in enumerate(burst):
+            exif = frame.exif
+            shot = ", ".join(str(exif[k]) for k in ("model", "datetime_original") if k in exif)
+            label = position if i == 0 else ""
+            lines.append(f"  {label:<5}  {frame.file}  {frame.size_px[0]}x{frame.size_px[1]}  "
+                         f"sha256 {frame.sha256[:12]}  {shot}".rstrip())
     lines.append(f"targets ({len(session.targets)})")
     for target in session.targets:
         ranges = ", ".join(f"{r.slope_distance_m:.2f}" for r in target.readings) or "none"

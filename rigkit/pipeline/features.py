@@ -119,8 +119,8 @@ def match_brightness(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
         return cv2.GaussianBlur(a, (0, 0), 0.05 * max(small))
 
     wgt = low_pass(inside) + 1e-6
-    gain = (low_pass(reference * inside) / wgt) / np.maximum(low_pass(image * inside) / wgt, 1e-3)
-    gain = cv2.resize(gain, (w, h), interpolation=cv2.INTER_LINEAR)
+    ratio = (low_pass(reference * inside) / wgt) / np.maximum(low_pass(image * inside) / wgt, 1e-3)
+    gain = cv2.resize(ratio.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
     return (image * gain).astype(np.float32)
 
 

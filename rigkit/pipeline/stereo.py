@@ -131,8 +131,10 @@ def surface_mask(
     clipped = cv2.dilate((image >= 254).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     raw = (contrast >= min_texture * noise) & ~clipped & inside
     # The window spreads a textured edge half a window into the blank area beside it;
-    # eroding by the window takes that back, and drops islands smaller than it.
-    return cv2.erode(raw.astype(np.uint8), np.ones(k, np.uint8)) > 0
+    # eroding by the window takes that back, and drops islands smaller than it. The
+    # image border is no blank area: outside counts as surface while eroding.
+    eroded = cv2.erode((raw | ~inside).astype(np.uint8), np.ones(k, np.uint8)) > 0
+    return eroded & inside
 
 
 def _noise_level(

@@ -25,7 +25,10 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
+import numpy as np
+
 from rigkit.errors import InputError
+from rigkit.geometry import distort
 from rigkit.rig.optics import fov_deg
 from rigkit.rig.profile import Baseline, RigProfile, rig_to_dict
 
@@ -104,6 +107,18 @@ def affine_residual_px(focal_px: float, image_size: tuple[int, int], rotation_de
     """
     width, height = image_size
     return math.radians(rotation_deg) * (width / 2.0) * (height / 2.0) / focal_px
+
+
+def corner_distortion(profile: RigProfile) -> tuple[float, float]:
+    """How far the profile's lens distortion moves the image corner: (radial scale
+    change as a fraction, displacement in px), about the image centre. (0, 0) without
+    distortion."""
+    width, height = profile.image_size
+    f = profile.focal_px
+    x, y = (width - 1) / 2 / f, (height - 1) / 2 / f
+    xd, yd = distort(np.array(x), np.array(y), profile.distortion)
+    shift_px = float(np.hypot(xd - x, yd - y)) * f
+    return shift_px / (math.hypot(x, y) * f), shift_px
 
 
 @dataclass(frozen=True)
@@ -400,6 +415,11 @@ def check_to_dict(check: RigCheck) -> dict[str, Any]:
             "diagonal": fov_deg(model.focal_px, math.hypot(width, height)),
         },
         "straight_line_lb_m": check.straight_line_lb_m,
+        "distortion": {
+            "k1_k2_p1_p2_k3": list(profile.distortion),
+            "corner_fraction": corner_distortion(profile)[0],
+            "corner_px": corner_distortion(profile)[1],
+        },
         "assumptions": {
             "disparity_error_px": model.disparity_error_px,
             "offset_error_px": model.offset_error_px,

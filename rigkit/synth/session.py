@@ -26,11 +26,18 @@ from rigkit.capture import (
 )
 from rigkit.core.files import write_text
 from rigkit.synth.evaluate import visible_in_right
-from rigkit.synth.io import VIEWS, load_scene, write_scene
+from rigkit.synth.io import VIEWS, frame_name, load_scene, write_scene
 from rigkit.synth.scene import Scene
 
 RIG_FILE = "rig.yaml"
 FLATNESS = 0.002  # targets need depth within 0.2 % across their window
+
+
+def _lens(distortion: tuple[float, ...]) -> dict[str, Any]:
+    """The profile's ``distortion`` entry for a lens that has one."""
+    if not any(distortion):
+        return {}
+    return {"distortion": dict(zip(("k1", "k2", "p1", "p2", "k3"), distortion, strict=True))}
 
 
 def rig_for_scene(scene: Scene) -> dict[str, Any]:
@@ -48,6 +55,7 @@ def rig_for_scene(scene: Scene) -> dict[str, Any]:
             "model": "synthetic pinhole",
             "resolution": [p.width, p.height],
             "focal_length": {"px": p.focal_px, "tolerance_fraction": 0.0},
+            **_lens(p.distortion),
         },
         "baselines": {
             "C_lr": {"value_m": p.baseline_lr_m, "tolerance_m": 0.0},
@@ -97,10 +105,12 @@ def session_from_rendered(
     session = create_session(out_dir, out_dir / RIG_FILE,
                              notes=f"synthetic scene, seed {scene.seed}")
     for view in VIEWS:
-        rendered = out_dir / f"{view}{frame_suffix}"
-        session = add_frame(session, view, rendered,
-                            origin=f"rendered by rigkit synth, seed {scene.seed}")
-        rendered.unlink()  # rendered by us a moment ago; the copy in raw/ is the frame
+        burst = [out_dir / f"{view}{frame_suffix}"]
+        burst += [out_dir / frame_name(view, k) for k in range(1, scene.params.burst)]
+        for rendered in burst:
+            session = add_frame(session, view, rendered, burst=True,
+                                origin=f"rendered by rigkit synth, seed {scene.seed}")
+            rendered.unlink()  # rendered by us a moment ago; the copy in raw/ is the frame
     truth = load_scene(out_dir)
     rng = np.random.default_rng(seed)
     window = _window_px(scene.params.width)

@@ -179,3 +179,34 @@ def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Pat
         with pytest.raises(InputError, match="being processed by another rigkit run"):
             process_session(copy, "20260107T000000Z-0007")
     assert not (copy / "results").exists()
+
+
+def test_a_session_with_bursts_and_a_lens_profile(tmp_path: Path) -> None:
+    """Three frames per position with shimmer, and a distorting lens the rig profile
+    names: processed end to end, the burst stacked, the lens recorded."""
+    from dataclasses import replace
+
+    import yaml
+
+    from rigkit.synth import SynthParams, generate_scene
+    from rigkit.synth.session import RIG_FILE, write_synthetic_session
+
+    k1 = 0.002 / ((640**2 + 480**2) / 4 / SynthParams(width=640).focal_px**2)
+    params = replace(SynthParams(width=640, height=480, max_pp_offset_px=0.0), burst=3,
+                     shimmer_px=0.1, shimmer_corr_px=8.0, distortion=(k1, 0, 0, 0, 0))
+    out = tmp_path / "burst"
+    write_synthetic_session(generate_scene(params, seed=5), out, n_targets=3, seed=5)
+    session = load_session(out)
+    assert all(len(session.bursts[p]) == 3 for p in ("left", "right", "back"))
+    # The rig profile carries the lens: the session's copy of it is what processing uses.
+    assert session.rig().distortion == (k1, 0, 0, 0, 0)
+    outcome = process_session(out, "20260101T000000Z-0002")
+    assert outcome.ok, outcome.message
+    meta = json.loads((out / "results" / "depth.json").read_text())
+    assert [len(meta["frames"][p]) for p in ("left", "right", "back")] == [3, 3, 3]
+    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"][0] == pytest.approx(k1)
+    rows = read_rows(out / LOG_NAME)
+    # 640 px frames: the offset, and so the range, is good to a few % (its sigma says so).
+    assert rows and all(abs(r.error_m) < 3 * r.estimate_sigma_m + 0.2 for r in rows)
+    assert all(abs(r.error_pct) < 5 for r in rows)
+    assert yaml.safe_load((out / RIG_FILE).read_text())["camera"]["distortion"]["k1"] == k1

@@ -129,16 +129,29 @@ def test_session_checks_catch_the_same_frame_twice(tmp_path: Path) -> None:
     assert _failed(onsite_checks(session, "right")).keys() == {"same_frame"}
 
 
-def test_a_burst_frame_replaces_the_position_and_keeps_the_file(tmp_path: Path) -> None:
+def test_a_second_frame_joins_the_burst(tmp_path: Path) -> None:
     session = create_session(tmp_path / "s", SYNTHETIC)
     first = _png(tmp_path / "one.png", texture(seed=1))
     second = _png(tmp_path / "two.png", texture(seed=2))
     session = add_position_frame(session, "left", first)
     session = add_position_frame(session, "left", second)
     assert [Path(f.file).name for f in frames_at(load_session(session.path), "left")] == \
-        ["two.png"]
-    assert (session.path / "raw" / "one.png").is_file()
+        ["one.png", "two.png"]
     assert first.is_file() and second.is_file()  # originals left in place
+
+
+def test_a_retake_after_a_failed_check_replaces_the_position(tmp_path: Path) -> None:
+    session = create_session(tmp_path / "s", SYNTHETIC)
+    left = _png(tmp_path / "a.png", texture(seed=1))
+    copy = tmp_path / "b.png"
+    shutil.copy(left, copy)
+    session = add_position_frame(session, "left", left)
+    session = add_position_frame(session, "right", copy)  # the same frame: fails
+    assert not all(c.ok for c in onsite_checks(session, "right"))
+    retake = _png(tmp_path / "c.png", texture(seed=3))
+    session = add_position_frame(session, "right", retake)
+    assert [Path(f.file).name for f in frames_at(session, "right")] == ["c.png"]
+    assert (session.path / "raw" / "b.png").is_file()  # nothing captured is lost
 
 
 def test_exif_check_names_the_setting_that_changed(tmp_path: Path) -> None:

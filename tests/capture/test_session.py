@@ -218,3 +218,28 @@ def test_bundled_example_records_no_machine_path() -> None:
     example = load_session(RIG.parents[1] / "capture" / "example")
     assert {f.source for f in example.frames.values()} == {"rendered by rigkit synth, seed 7"}
     assert frame_problems(example) == []
+
+
+def test_a_burst_is_listed_in_order_and_read_back(tmp_path: Path) -> None:
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    session = add_frame(session, "left", png(tmp_path / "b.png", seed=1), burst=True)
+    session = add_frame(session, "left", png(tmp_path / "c.png", seed=2), burst=True)
+    files = [f.file for f in session.bursts["left"]]
+    assert files == ["raw/a.png", "raw/b.png", "raw/c.png"]
+    assert session.frames["left"].file == "raw/a.png"  # the first fixes the grid
+    again = load_session(tmp_path / "s")
+    assert again.bursts["left"] == session.bursts["left"]
+    text = (tmp_path / "s" / "session.yaml").read_text()
+    assert text.count("file: raw/") == 3 and text.count("sha256:") == 4  # and the rig's
+    # a retake replaces the whole burst, and every file stays
+    session = add_frame(session, "left", png(tmp_path / "d.png", seed=3), replace_existing=True)
+    assert [f.file for f in session.bursts["left"]] == ["raw/d.png"]
+    assert all((tmp_path / "s" / "raw" / n).is_file() for n in ("a.png", "b.png", "c.png"))
+
+
+def test_a_burst_refuses_the_same_exposure_twice_and_another_size(tmp_path: Path) -> None:
+    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    with pytest.raises(InputError, match="the same image as left frame raw/a.png"):
+        add_frame(session, "left", tmp_path / "a.png", burst=True)
+    with pytest.raises(InputError, match="all three must match"):
+        add_frame(session, "left", png(tmp_path / "big.png", size=(80, 60)), burst=True)

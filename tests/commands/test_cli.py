@@ -73,3 +73,50 @@ def test_help_lists_every_command(capsys):
     out = capsys.readouterr().out
     for cmd in ("depth", "synth", "eval", "rig", "rangefinder"):
         assert cmd in out
+
+
+def test_depth_takes_bursts_and_a_distortion(scene_dir, truth, tmp_path):
+    # A burst of two frames per position (the second a copy) and a zero distortion;
+    # both are recorded in the sidecar.
+    frames = [scene_dir / f"{v}.png" for v in ("left", "right", "back")]
+    burst = [f"{p},{p}" for p in frames]
+    out = tmp_path / "d.npy"
+    flags = ["--focal-px", str(truth.focal_px), "--baseline-lr", "2", "--baseline-lb", "2"]
+    args = ["depth", *burst, "--out", str(out), "--quiet", *flags, "--distortion", "0,0"]
+    assert main(args) == 0
+    meta = json.loads((tmp_path / "d.json").read_text())
+    assert len(meta["inputs"]["left"]) == 2
+    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"] == [0.0] * 5
+    assert meta["settings"]["min_texture"] == 3.0
+
+
+@pytest.mark.parametrize(
+    "position, message",
+    [(2, "the left and right images are identical"), (3, "left and back images are identical")],
+)
+def test_the_same_frame_twice_is_refused_with_no_output(
+    scene_dir, truth, tmp_path, capsys, position, message
+):
+    args = _depth_args(scene_dir, tmp_path / "d.npy", "--focal-px", str(truth.focal_px),
+                       "--baseline-lr", "2", "--baseline-lb", "2")
+    args[position] = args[1]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+    assert not list(tmp_path.iterdir())
+
+
+def test_bad_distortion_flag_is_one_line(scene_dir, tmp_path, capsys):
+    args = _depth_args(scene_dir, tmp_path / "d.npy", "--focal-px", "9000",
+                       "--baseline-lr", "2", "--baseline-lb", "2", "--distortion", "0.1,0.2,0.3")
+    assert main(args) == 2
+    assert "--distortion '0.1,0.2,0.3': distortion takes 1, 2, 4 or 5" in capsys.readouterr().err
+
+
+def test_synth_field_writes_a_burst_with_sky(tmp_path):
+    out = tmp_path / "f"
+    args = ["synth", str(out), "--seed", "2", "--width", "320", "--height", "240", "--field",
+            "--burst", "2", "--quiet"]
+    assert main(args) == 0
+    assert (out / "left-2.png").is_file() and (out / "back-2.png").is_file()
+    assert np.isnan(np.load(out / "ground_truth" / "depth_left.npy")).any()

@@ -1,0 +1,51 @@
+"""Bursts: frames of one position aligned and stacked, checked against the frame they
+were made from."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from rigkit.errors import InputError
+from rigkit.pipeline.burst import stack_burst
+from rigkit.synth.render import shimmer_field
+
+
+def _texture(rng: np.random.Generator) -> np.ndarray:
+    img = rng.uniform(0, 255, (300, 400)).astype(np.float32)
+    return cv2.GaussianBlur(img, (0, 0), 1.5) * 2 - 100
+
+
+def _moved(img: np.ndarray, dx: float, dy: float, rng, shimmer: float) -> np.ndarray:
+    """``img`` seen again: shifted by (dx, dy), with shimmer and noise."""
+    sx, sy = shimmer_field(img.shape, shimmer, 8.0, rng)
+    v, u = np.mgrid[0 : img.shape[0], 0 : img.shape[1]].astype(np.float32)
+    out = cv2.remap(img, u - dx + sx, v - dy + sy, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    return out + rng.normal(0, 2.0, img.shape).astype(np.float32)
+
+
+def test_stacking_undoes_shifts_and_reduces_shimmer_and_noise() -> None:
+    rng = np.random.default_rng(5)
+    truth = _texture(rng)
+    shifts = [(0, 0), (1.3, -0.4), (-2.2, 0.8), (0.6, 1.9), (-0.7, -1.1)]
+    frames = [_moved(truth, dx, dy, rng, 0.3) for dx, dy in shifts]
+    # Frame 1 is the reference grid: compare away from the borders.
+    inner = (slice(20, -20), slice(20, -20))
+    single = np.sqrt(np.mean((frames[0] - truth)[inner] ** 2))
+    stacked = np.sqrt(np.mean((stack_burst(frames) - truth)[inner] ** 2))
+    assert stacked < 0.7 * single
+
+
+def test_one_frame_is_returned_as_it_is() -> None:
+    img = _texture(np.random.default_rng(1))
+    assert stack_burst([img]) is img
+
+
+def test_frames_of_another_size_or_place_are_refused() -> None:
+    img = _texture(np.random.default_rng(2))
+    with pytest.raises(InputError, match="left burst: frame 2 is 400x299"):
+        stack_burst([img, img[:-1]], "left burst")
+    far = np.roll(img, 120, axis=1)
+    with pytest.raises(InputError, match="frame 2 is shifted"):
+        stack_burst([img, far], "left burst")
