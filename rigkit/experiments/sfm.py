@@ -51,6 +51,7 @@ def _pycolmap():
         raise InputError(
             "sfm-mvs needs pycolmap: pip install 'rigkit[experiments]'"
         ) from None
+    pycolmap.logging.minloglevel = 2  # errors only: COLMAP logs every step at INFO
     return pycolmap
 
 
