@@ -103,7 +103,8 @@ def _parse_methods(text: str) -> list[str]:
 
 def run_table1(args: argparse.Namespace) -> int:
     from rigkit.core.progress import Progress
-    from rigkit.experiments.table1 import run_table1 as run, table_text
+    from rigkit.experiments.table1 import run_table1 as run
+    from rigkit.experiments.table1 import scene_dirs, table_text
     from rigkit.synth import SynthParams
 
     if args.scenes < 1:
@@ -112,7 +113,8 @@ def run_table1(args: argparse.Namespace) -> int:
     params = SynthParams(width=args.width, height=args.height)
     params.validate()
     seeds = list(range(args.seed, args.seed + args.scenes))
-    with Progress("table1", quiet=args.quiet) as progress:
+    tasks = [d.name for d in scene_dirs(args.out, seeds, params)]
+    with Progress("table1", tasks, quiet=args.quiet) as progress:
         rows = run(args.out, seeds, params, methods, progress.update)
     print(f"Table 1: {args.scenes} scenes at {args.width}x{args.height}, seeds "
           f"{seeds[0]}-{seeds[-1]}")

@@ -98,7 +98,12 @@ def _projective_rows(F: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, 
 
     def distortion(t: float) -> float:
         z = np.array([np.cos(t), np.sin(t), 0.0])
-        return sum(float(w @ PPt @ w) / float(w @ pcpc @ w) for w in (ex @ z, F @ z))
+        ws = (ex @ z, F @ z)
+        den = [float(w @ pcpc @ w) for w in ws]
+        # w . p_c = 0 sends the image centre to infinity: not a candidate.
+        if min(den) <= 1e-12 * max(max(den), 1e-300):
+            return np.inf
+        return sum(float(w @ PPt @ w) / d for w, d in zip(ws, den, strict=True))
 
     grid = np.linspace(0, np.pi, 721)
     t0 = grid[int(np.argmin([distortion(t) for t in grid]))]
