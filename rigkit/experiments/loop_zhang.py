@@ -118,9 +118,8 @@ def _shear(H: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """Loop & Zhang's shear (3, 3) keeping the mid-lines of the image, mapped by ``H``,
     perpendicular and in the image's aspect ratio."""
     w, h = size
-    a, b, c, d = apply_h(
-        H, np.array([[(w - 1) / 2, 0], [w - 1, (h - 1) / 2], [(w - 1) / 2, h - 1], [0, (h - 1) / 2]])
-    )
+    mid = np.array([[(w - 1) / 2, 0], [w - 1, (h - 1) / 2], [(w - 1) / 2, h - 1], [0, (h - 1) / 2]])
+    a, b, c, d = apply_h(H, mid)
     x, y = b - d, c - a
     den = h * w * (x[1] * y[0] - x[0] * y[1])
     sa = (h * h * x[1] ** 2 + w * w * y[1] ** 2) / den

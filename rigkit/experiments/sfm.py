@@ -80,7 +80,8 @@ def _write_database(
     pc = _pycolmap()
     (work / "images").mkdir()
     for v, img in images.items():
-        cv2.imwrite(str(work / "images" / f"{v}.png"), np.clip(np.rint(img), 0, 255).astype(np.uint8))
+        grey = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        cv2.imwrite(str(work / "images" / f"{v}.png"), grey)
     db_path = work / "database.db"
     pc.Database.open(db_path).close()
     pc.import_images(db_path, work / "images", pc.CameraMode.PER_IMAGE)
@@ -138,7 +139,9 @@ def colmap_poses(
         work = Path(tmp)
         db_path = _write_database(work, images, K, m_lr, m_lb)
         (work / "sparse").mkdir()
-        models = pc.incremental_mapping(db_path, work / "images", work / "sparse", _mapper_options(rng))
+        models = pc.incremental_mapping(
+            db_path, work / "images", work / "sparse", _mapper_options(rng)
+        )
     for rec in models.values():
         got = {im.name.removesuffix(".png"): im.cam_from_world() for im in rec.images.values()}
         if "left" in got and "right" in got:

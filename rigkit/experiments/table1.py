@@ -229,7 +229,11 @@ def run_table1(
         name = folder.name
         report(name, 0.0, "rendering")
         render_if_missing(folder, seed, params)
-        scores = evaluate_scene(folder, methods, seed, lambda st, f, n=name: report(n, f, st))
+
+        def stage(st: str, frac: float, name: str = name) -> None:
+            report(name, frac, st)
+
+        scores = evaluate_scene(folder, methods, seed, stage)
         for method, m in scores.items():
             per_scene[method].append(m)
         report(name, 1.0, "done")

@@ -25,7 +25,7 @@ def _pair(rng, euler=(0.5, -0.7, 3.0), centre=(2.0, 0.0, 0.0), n=400):
     Kr = intrinsics(10990.0, 570.0, 445.0)
     R = euler_to_matrix(*euler).T  # world -> right camera
     C = np.array(centre)
-    X = np.column_stack([rng.uniform(-15, 15, n), rng.uniform(-11, 11, n), rng.uniform(280, 330, n)])
+    X = rng.uniform([-15, -11, 280], [15, 11, 330], (n, 3))
 
     def project(K, R, C):
         Xc = (X - C) @ R.T
@@ -53,9 +53,8 @@ def test_shear_keeps_mid_lines_perpendicular_and_in_aspect():
     _, _, F = _pair(np.random.default_rng(2))
     w, h = SIZE
     H_l, _ = rectifying_homographies(F, SIZE)
-    a, b, c, d = apply_h(
-        H_l, np.array([[(w - 1) / 2, 0], [w - 1, (h - 1) / 2], [(w - 1) / 2, h - 1], [0, (h - 1) / 2]])
-    )
+    mid = np.array([[(w - 1) / 2, 0], [w - 1, (h - 1) / 2], [(w - 1) / 2, h - 1], [0, (h - 1) / 2]])
+    a, b, c, d = apply_h(H_l, mid)
     x, y = b - d, c - a
     assert abs(x @ y) / (np.linalg.norm(x) * np.linalg.norm(y)) < 1e-9
     assert np.linalg.norm(x) / np.linalg.norm(y) == pytest.approx(w / h, rel=1e-9)

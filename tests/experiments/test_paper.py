@@ -24,7 +24,6 @@ def _affine_matches(rng, n=500, outliers=50):
     A = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
     pr = pl @ A.T + [30.0, -12.0]
     pr[:, 0] -= rng.uniform(60, 80, n) * np.cos(a)  # parallax along the baseline
-    pr[:, 1] -= rng.uniform(60, 80, n) * 0.0
     bad = rng.choice(n, outliers, replace=False)
     pr[bad, 1] += rng.uniform(10, 30, outliers)
     return pl, pr, bad
