@@ -21,6 +21,7 @@ COMMANDS: tuple[str, ...] = (
     "process",
     "report",
     "field",
+    "experiments",
 )
 
 
