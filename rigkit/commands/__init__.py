@@ -3,3 +3,22 @@
 A module's ``register`` adds one subparser and sets ``func`` to a callable
 ``(argparse.Namespace) -> int`` that returns the exit code.
 """
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rigkit.geometry import Distortion
+
+
+def parse_distortion(text: str) -> Distortion:
+    """``--distortion K1[,K2[,P1,P2[,K3]]]`` as OpenCV's five coefficients; InputError
+    naming the flag and value otherwise."""
+    from rigkit.errors import InputError
+    from rigkit.geometry import distortion_coefficients
+
+    try:
+        return distortion_coefficients([float(x) for x in text.split(",")])
+    except ValueError as exc:
+        raise InputError(f"--distortion {text!r}: {exc}") from None

@@ -67,8 +67,8 @@ def rig_geometry(args: argparse.Namespace):  # -> (RigGeometry, PipelineSettings
     baselines required); the pipeline settings from --rig's ``pipeline:`` section."""
     from dataclasses import asdict
 
+    from rigkit.commands import parse_distortion
     from rigkit.errors import InputError
-    from rigkit.geometry import distortion_coefficients
     from rigkit.pipeline import RigGeometry
     from rigkit.pipeline.settings import PipelineSettings
 
@@ -85,12 +85,7 @@ def rig_geometry(args: argparse.Namespace):  # -> (RigGeometry, PipelineSettings
         values = asdict(profile.geometry())
         settings = profile.pipeline_settings()
     if args.distortion is not None:
-        try:
-            values["distortion"] = distortion_coefficients(
-                [float(x) for x in args.distortion.split(",")]
-            )
-        except ValueError as exc:
-            raise InputError(f"--distortion {args.distortion!r}: {exc}") from None
+        values["distortion"] = parse_distortion(args.distortion)
     for key, flag in (
         ("focal_px", "focal_px"),
         ("baseline_lr_m", "baseline_lr"),

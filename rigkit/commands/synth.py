@@ -151,8 +151,7 @@ def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
     """``params`` with --field's preset and the field flags given applied."""
     from dataclasses import replace
 
-    from rigkit.errors import InputError
-    from rigkit.geometry import distortion_coefficients
+    from rigkit.commands import parse_distortion
     from rigkit.synth import field_params
 
     if args.field:
@@ -162,11 +161,7 @@ def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
         if getattr(args, flag) is not None
     }
     if args.distortion is not None:
-        try:
-            values = [float(x) for x in args.distortion.split(",")]
-            changes["distortion"] = distortion_coefficients(values)
-        except ValueError as exc:
-            raise InputError(f"--distortion {args.distortion!r}: {exc}") from None
+        changes["distortion"] = parse_distortion(args.distortion)
     return replace(params, **changes)
 
 

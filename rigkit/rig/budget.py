@@ -29,11 +29,12 @@ import numpy as np
 
 from rigkit.errors import InputError
 from rigkit.geometry import distort
+from rigkit.pipeline.settings import PipelineSettings
 from rigkit.rig.optics import fov_deg
 from rigkit.rig.profile import Baseline, RigProfile, rig_to_dict
 
-DISPARITY_ERROR_PX = 0.25
-"""Default disparity (matching) error, pixels."""
+DISPARITY_ERROR_PX = PipelineSettings().stereo_noise_px
+"""Default disparity (matching) error, pixels: the pipeline's own figure."""
 OFFSET_ERROR_PX = 0.5
 """Default error of the global disparity offset after ambiguity removal, pixels."""
 BUDGET_RANGES_M = (100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0)
