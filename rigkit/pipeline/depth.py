@@ -92,9 +92,10 @@ def mask_to_left(
     shape: tuple[int, int],
     lens: Lens | None = None,
 ) -> np.ndarray:
-    """Resample a bool mask of the ``scale``-resized rectified canvas to the original
-    left grid (nearest neighbour). Returns (H, W) bool."""
-    out = np.zeros(shape, bool)
+    """Resample bool masks of the ``scale``-resized rectified canvas to the original
+    left grid (nearest neighbour), all in one pass: ``mask`` (h, w) or (h, w, c) with
+    c <= 4. Returns (H, W) or (H, W, c) bool."""
+    out = np.zeros(shape + mask.shape[2:], bool)
     src = mask.astype(np.uint8)
     for rows, xs, ys, _ in _left_grid(rect, scale, shape, lens):
         out[rows] = cv2.remap(src, xs, ys, cv2.INTER_NEAREST, borderValue=0) > 0

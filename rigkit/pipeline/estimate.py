@@ -183,8 +183,8 @@ def estimate_depth(
     dense = restrict_to_footprints(np.where(surface, dense, np.nan), left_fp, right_fp)
     holes &= np.isfinite(dense)
     depth = depth_map(dense, scale, rect, amb.beta, rig.baseline_lr_m, left.shape, lens)
-    filled = mask_to_left(holes, scale, rect, left.shape, lens)
-    no_surface = mask_to_left(~surface & left_fp, scale, rect, left.shape, lens)
+    both = mask_to_left(np.dstack([holes, ~surface & left_fp]), scale, rect, left.shape, lens)
+    filled, no_surface = both[..., 0], both[..., 1]
     sigma = _depth_sigma(depth, filled, rig, amb, s)
     lap("depth", 1.0)
     return DepthResult(
