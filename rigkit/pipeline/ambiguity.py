@@ -208,11 +208,10 @@ def _fit(matches, rect, xr, d, pb, c_lr: float, c_lb: float):
     inliers, inlier mask over the given matches)."""
     args = (rect, xr, d, pb, c_lr, c_lb)
     p0 = _initial(matches, rect, xr, d, c_lr, c_lb)
-    scales = _SCALES
-    fit = least_squares(_residuals, p0, args=args, x_scale=scales)
+    fit = least_squares(_residuals, p0, args=args, x_scale=_SCALES)
     # A redescending loss: a wrong disparity moves a point in the back view by little,
     # so outliers are small and a bounded-influence (L1-like) loss would still be biased.
-    fit = least_squares(_residuals, fit.x, args=args, loss="cauchy", f_scale=0.2, x_scale=scales)
+    fit = least_squares(_residuals, fit.x, args=args, loss="cauchy", f_scale=0.2, x_scale=_SCALES)
     err = np.linalg.norm(_residuals(fit.x, *args).reshape(-1, 2), axis=1)
     inl = err < 3.0 * 1.4826 * float(np.median(err))
     if inl.sum() < MIN_MATCHES:
@@ -220,4 +219,4 @@ def _fit(matches, rect, xr, d, pb, c_lr: float, c_lb: float):
             f"left/back: only {int(inl.sum())} matches agree with one back-camera pose"
         )
     args = (rect, xr[inl], d[inl], pb[inl], c_lr, c_lb)
-    return least_squares(_residuals, fit.x, args=args, x_scale=scales), inl
+    return least_squares(_residuals, fit.x, args=args, x_scale=_SCALES), inl

@@ -158,6 +158,8 @@ def _noise_level(
         if sel.sum() >= 50:
             centres.append(0.5 * (lo + hi))
             levels.append(float(np.percentile(n[sel], 5)))
+    if not centres:  # too few pixels to bin: one level for the whole image
+        return np.full(image.shape, max(float(np.percentile(n, 5)), 0.25), np.float32)
     envelope = np.maximum.accumulate(np.maximum(levels, 0.25))
     return np.interp(mean, centres, envelope).astype(np.float32)
 

@@ -141,13 +141,15 @@ def _sphere_hits(sph: Sphere, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray,
     return t, n, st
 
 
-def _object_rect(cam: Camera, corners: np.ndarray) -> tuple[int, int, int, int] | None:
-    """Pixel rectangle (u0, u1, v0, v1) that contains the projection of ``corners``."""
+def _object_rect(
+    cam: Camera, corners: np.ndarray, bend_px: float
+) -> tuple[int, int, int, int] | None:
+    """Pixel rectangle (u0, u1, v0, v1) that contains the projection of ``corners``,
+    widened by ``bend_px``, the most the lens distortion bends a straight edge."""
     uv, z = cam.project(corners)
     if np.any(z <= 0):
         return 0, cam.width, 0, cam.height
-    # Distortion bends straight edges: widen by the most it moves any pixel.
-    margin = 2 + _max_distortion_px(cam)
+    margin = 2 + bend_px
     u0, v0 = np.floor(uv.min(axis=0) - margin).astype(int)
     u1, v1 = np.ceil(uv.max(axis=0) + margin + 1).astype(int)
     u0, v0 = max(u0, 0), max(v0, 0)
@@ -191,9 +193,10 @@ def render_view(
     depth = np.empty((H, W), np.float32)
     objects: list[tuple[Box | Sphere, tuple[int, int, int, int]]] = []
     everything: tuple[Box | Sphere, ...] = (*scene.boxes, *scene.spheres)
+    bend_px = _max_distortion_px(cam)
     for obj in everything:
         corners = _box_corners(obj) if isinstance(obj, Box) else _sphere_corners(obj)
-        rect = _object_rect(cam, corners)
+        rect = _object_rect(cam, corners, bend_px)
         if rect is not None:
             objects.append((obj, rect))
     light = np.array(scene.light) / np.linalg.norm(scene.light)

@@ -103,3 +103,17 @@ def test_settings_are_recorded_and_validated(result) -> None:
         PipelineSettings(stereo_scale=2.0)
     with pytest.raises(InputError, match="distortion"):
         RigGeometry(40000.0, 2.0, 2.0, (0.1, 0.2, 0.3))  # type: ignore[arg-type]
+
+
+def test_surface_mask_on_a_tiny_image_and_a_blank_one() -> None:
+    from rigkit.pipeline.stereo import surface_mask
+
+    import cv2
+
+    rng = np.random.default_rng(0)
+    # Texture coarser than a pixel, plus sensor noise; too few pixels to bin by brightness.
+    pattern = cv2.resize(rng.uniform(0, 255, (4, 4)).astype(np.float32), (12, 12))
+    textured = pattern + rng.normal(0, 1.5, (12, 12)).astype(np.float32)
+    assert surface_mask(textured, np.ones((12, 12), bool), 3.0, 9).any()
+    blank = np.full((60, 80), 120.0, np.float32) + rng.normal(0, 1.5, (60, 80)).astype(np.float32)
+    assert not surface_mask(blank, np.ones((60, 80), bool), 3.0, 9).any()
