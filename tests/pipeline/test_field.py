@@ -106,9 +106,9 @@ def test_settings_are_recorded_and_validated(result) -> None:
 
 
 def test_surface_mask_on_a_tiny_image_and_a_blank_one() -> None:
-    from rigkit.pipeline.stereo import surface_mask
-
     import cv2
+
+    from rigkit.pipeline.stereo import surface_mask
 
     rng = np.random.default_rng(0)
     # Texture coarser than a pixel, plus sensor noise; too few pixels to bin by brightness.
