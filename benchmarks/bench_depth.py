@@ -1,9 +1,12 @@
 """Speed and peak memory of the depth pipeline, end to end and per stage, at 1/4, 1/2
-and full 4608x3456 resolution (one synthetic triple each, rendered once and cached).
+and full 4608x3456 resolution (one synthetic triple each, rendered once and cached),
+and side by side the time of a plain reading of the paper's method on the same images
+(rigkit's matcher, then :func:`rigkit.experiments.paper.paper_depth`).
 
     python benchmarks/bench_depth.py [--work out/bench] [--sizes 1152,2304,4608]
 
-Each size runs in a fresh process so that peak memory (max RSS) is its own.
+Each size runs in a fresh process so that peak memory (max RSS) is its own; the
+paper's method runs after rigkit in that process (its peak is not reported).
 """
 
 from __future__ import annotations
@@ -32,10 +35,28 @@ def run_one(scene: Path) -> dict:
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
         "load": round(t_load, 2),
+        "lens": 0.0,
         **res.timings_s,
         "total": round(total, 2),
         "peak_mb": round(peak_mb),
+        "paper": round(t_load + paper_seconds(imgs, truth), 2),
     }
+
+
+def paper_seconds(imgs: list, truth) -> float:
+    """Seconds the paper's method takes on the loaded triple (matching included)."""
+    import numpy as np
+
+    from rigkit.experiments.paper import paper_depth
+    from rigkit.pipeline.features import match_views
+
+    left, right, back = imgs
+    t0 = time.perf_counter()
+    m_lr = match_views(left, right, "left/right")
+    m_lb = match_views(left, back, "left/back")
+    paper_depth(left, right, m_lr, m_lb, truth.focal_px, truth.baseline_lr_m,
+                truth.baseline_lb_m, np.random.default_rng(0))
+    return time.perf_counter() - t0
 
 
 def main() -> int:
@@ -52,8 +73,9 @@ def main() -> int:
     from rigkit.synth import SynthParams, generate_scene, write_scene
 
     print(
-        f"{'size':>11} {'pixels':>7} {'load':>5} {'match':>6} {'rect':>5} {'stereo':>6} "
-        f"{'ambig':>6} {'depth':>6} {'total s':>7} {'peak MB':>7}"
+        f"{'size':>11} {'pixels':>7} {'load':>5} {'match':>6} {'lens':>5} {'rect':>5} "
+        f"{'stereo':>6} {'ambig':>6} {'depth':>6} {'total s':>7} {'peak MB':>7} "
+        f"{'paper s':>7} {'ratio':>5}"
     )
     for w in (int(s) for s in args.sizes.split(",")):
         h = w * 3 // 4
@@ -69,8 +91,9 @@ def main() -> int:
         r = json.loads(out.stdout.strip().splitlines()[-1])
         print(
             f"{w:>5}x{h:<5} {w * h / 1e6:6.1f}M {r['load']:5.2f} {r['matching']:6.2f} "
-            f"{r['rectification']:5.2f} {r['stereo']:6.2f} {r['ambiguity']:6.2f} "
-            f"{r['depth']:6.2f} {r['total']:7.2f} {r['peak_mb']:7d}"
+            f"{r['lens']:5.2f} {r['rectification']:5.2f} {r['stereo']:6.2f} "
+            f"{r['ambiguity']:6.2f} {r['depth']:6.2f} {r['total']:7.2f} {r['peak_mb']:7d} "
+            f"{r['paper']:7.2f} {r['total'] / r['paper']:5.2f}"
         )
     return 0
 

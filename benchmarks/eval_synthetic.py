@@ -28,7 +28,10 @@ import numpy as np
 from rigkit.errors import RigkitError
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.burst import stack_burst
+from rigkit.pipeline.distortion import corner_shift_px
 from rigkit.pipeline.images import load_grey
+from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene
 from rigkit.synth.evaluate import evaluate_scenes, format_table, visible_in_right, write_csv
 
@@ -56,6 +59,18 @@ def offset_error_px(depth: np.ndarray, truth, rig: RigGeometry) -> float:
     return float(np.median(fc / depth[judged] - fc / z_true))
 
 
+def lens_note(res, truth) -> str:
+    """The fitted lens against the scene's: how far each moves the image corner."""
+    if res.lens_fit is None:
+        return ""
+    size = (truth.cameras["left"].width, truth.cameras["left"].height)
+    true = corner_shift_px(Lens(truth.focal_px, size, truth.cameras["left"].distortion))
+    fit = res.lens_fit
+    kept = "" if fit.significant else ", kept the start"
+    fitted = f"{fit.corner_px:+.2f} +- {fit.corner_sigma_px:.2f} px"
+    return f", lens corner {fitted} (true {true:+.2f}{kept})"
+
+
 def seed_list(text: str) -> list[int]:
     lo, _, hi = text.partition("-")
     return list(range(int(lo), int(hi or lo) + 1))
@@ -75,11 +90,15 @@ def main() -> int:
                     "to the pipeline)")
     ap.add_argument("--give-distortion", action="store_true",
                     help="tell the pipeline the scene's true lens distortion")
+    ap.add_argument("--fixed-lens", action="store_true",
+                    help="take the distortion as given (zeros unless --give-distortion) "
+                    "instead of fitting it from the views (distortion_terms = 0)")
     ap.add_argument("--burst", type=int, default=1,
                     help="frames per position, median-stacked (the time includes loading "
                     "and stacking)")
     args = ap.parse_args()
     params = scene_params(args)
+    settings = PipelineSettings(distortion_terms=0) if args.fixed_lens else PipelineSettings()
     coverage = []
     scenes, depth_dir = args.work / "scenes", args.work / "depth"
     depth_dir.mkdir(parents=True, exist_ok=True)
@@ -98,7 +117,7 @@ def main() -> int:
             for v in ("left", "right", "back")
         ]
         try:
-            res = estimate_depth(*imgs, rig)
+            res = estimate_depth(*imgs, rig, settings=settings)
         except RigkitError as exc:
             print(f"seed {seed}: FAILED: {exc}", file=sys.stderr)
             (depth_dir / f"{d.name}.npy").unlink(missing_ok=True)
@@ -109,7 +128,8 @@ def main() -> int:
         coverage.append(abs(err) <= 2 * sigma)
         print(
             f"seed {seed}: offset {res.ambiguity.offset_px:.2f} +- {sigma:.2f} px, "
-            f"error {err:+.2f} px ({err / sigma:+.1f} sigma), {elapsed:.1f} s",
+            f"error {err:+.2f} px ({err / sigma:+.1f} sigma), {elapsed:.1f} s"
+            f"{lens_note(res, truth)}",
             file=sys.stderr,
         )
     rows = evaluate_scenes(dirs, depth_dir)

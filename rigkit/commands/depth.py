@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 from pathlib import Path
 
 EXAMPLE = """example:
@@ -43,6 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--distortion", metavar="K1[,K2[,P1,P2[,K3]]]",
                    help="lens distortion, OpenCV model on normalised coordinates about the "
                    "image centre (overrides --rig's camera.distortion)")
+    p.add_argument("--lensfun", metavar="CAMERA:FOCAL_MM",
+                   help="lens distortion from lensfun's profile of CAMERA's built-in lens at "
+                   "the real focal length FOCAL_MM, e.g. 'Coolpix P1000:71.9'")
+    p.add_argument("--fixed-lens", action="store_true",
+                   help="use the given distortion as it is (default: refine it, or fit it "
+                   "when none is given, from the three views)")
     p.add_argument("--out", type=Path, required=True, help="depth map to write (.npy)")
     p.add_argument("--preview", action="store_true", help="also write colour-mapped PNGs")
     p.add_argument("--quiet", action="store_true", help="no progress output")
@@ -115,6 +122,10 @@ def run(args: argparse.Namespace) -> int:
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
     left, right, back = (load_position(getattr(args, p), p) for p in ("left", "right", "back"))
+    if args.lensfun:
+        rig = replace(rig, distortion=_lensfun(args.lensfun, rig.focal_px, left.shape))
+    if args.fixed_lens:
+        settings = replace(settings, distortion_terms=0)
     task = args.left[0].name
     with Progress("depth", [task], quiet=args.quiet) as progress:
         result = estimate_depth(
@@ -146,12 +157,31 @@ def run(args: argparse.Namespace) -> int:
         rel = 100 * result.sigma / result.depth
         files[f"{stem}.sigma.png"] = colorize(rel, 0.0, 2.0, "1-sigma error (% of depth)")
     write_together(out.parent, files)
-    a = result.ambiguity
+    a, lens = result.ambiguity, result.lens_fit
+    fitted = f", lens corner {lens.corner_px:+.2f} +- {lens.corner_sigma_px:.2f} px" if lens else ""
     print(
         f"wrote {out} ({left.shape[1]}x{left.shape[0]}, "
         f"density {100 * float(np.isfinite(result.depth).mean()):.1f} %, "
         f"median depth {float(np.nanmedian(result.depth)):.1f} m, "
-        f"offset {a.offset_px:.2f} +- {a.offset_sigma_px:.2f} px, "
+        f"offset {a.offset_px:.2f} +- {a.offset_sigma_px:.2f} px{fitted}, "
         f"{sum(result.timings_s.values()):.1f} s)"
     )
     return 0
+
+
+def _lensfun(text: str, focal_px: float, shape: tuple[int, ...]):  # -> Distortion
+    """``--lensfun CAMERA:FOCAL_MM`` converted for these images."""
+    from rigkit.errors import InputError
+    from rigkit.rig.lensfun import lensfun_profile
+
+    camera, _, focal = text.rpartition(":")
+    try:
+        focal_mm = float(focal)
+    except ValueError:
+        raise InputError(f"--lensfun {text!r}: expected CAMERA:FOCAL_MM, e.g. "
+                         "'Coolpix P1000:71.9'") from None
+    try:
+        spec = lensfun_profile(camera, focal_mm, (shape[1], shape[0]), focal_px)
+    except InputError as exc:
+        raise InputError(f"--lensfun {text!r}: {exc}") from None
+    return spec.distortion

@@ -43,7 +43,9 @@ class Ambiguity:
     ``beta`` (rad): yaw correction of the right camera; ``offset_px`` ~ ``f * beta``,
     the paper's disparity offset q at the image centre; ``offset_sigma_px``: its
     standard error (the larger of the least-squares one and a spatial jackknife's, which
-    also sees errors shared by neighbouring matches, such as heat shimmer);
+    also sees errors shared by neighbouring matches, such as heat shimmer; where the
+    lens was fitted from the views, :func:`~rigkit.pipeline.estimate_depth` adds the
+    part its uncertainty carries, :attr:`LensFit.offset_sigma_px`);
     ``back_rotvec`` (3,) left->back rotation (rad); ``back_offset_m``:
     the back camera's fitted (x right, y down) offset from the left optical axis;
     ``matches_used``/``inliers``: left/back matches with a disparity / within 1 px;

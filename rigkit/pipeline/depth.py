@@ -44,7 +44,7 @@ def triangulate_z(
     return np.where(z > 0, z, np.nan)
 
 
-def _left_grid(
+def left_grid(
     rect: Rectification, scale: float, shape: tuple[int, int], lens: Lens | None
 ) -> Iterator[tuple]:
     """For row chunks of the original (recorded) left image: (rows, xs, ys, uf) where
@@ -71,15 +71,17 @@ def depth_map(
     baseline_m: float,
     shape: tuple[int, int],
     lens: Lens | None = None,
+    grid: list[tuple] | None = None,
 ) -> np.ndarray:
-    """Depth of every pixel of the original (recorded) left image.
+    """Depth of every pixel of the original (recorded) left image (``grid``: the
+    :func:`left_grid` of the same arguments, when already computed).
 
     disparity: (h, w) float32, px of the ``disparity_scale``-resized rectified canvas,
     ``x_left - x_right``, NaN = unknown. shape: (H, W) of the original left image.
     Returns (H, W) float32, metres, z in the left camera frame, NaN where unknown.
     """
     out = np.empty(shape, np.float32)
-    for rows, xs, ys, uf in _left_grid(rect, disparity_scale, shape, lens):
+    for rows, xs, ys, uf in grid or left_grid(rect, disparity_scale, shape, lens):
         d = cv2.remap(disparity, xs, ys, cv2.INTER_LINEAR, borderValue=np.nan)
         out[rows] = triangulate_z(rect, uf, d / disparity_scale, beta, baseline_m)
     return out
@@ -91,12 +93,13 @@ def mask_to_left(
     rect: Rectification,
     shape: tuple[int, int],
     lens: Lens | None = None,
+    grid: list[tuple] | None = None,
 ) -> np.ndarray:
     """Resample bool masks of the ``scale``-resized rectified canvas to the original
     left grid (nearest neighbour), all in one pass: ``mask`` (h, w) or (h, w, c) with
     c <= 4. Returns (H, W) or (H, W, c) bool."""
     out = np.zeros(shape + mask.shape[2:], bool)
     src = mask.astype(np.uint8)
-    for rows, xs, ys, _ in _left_grid(rect, scale, shape, lens):
+    for rows, xs, ys, _ in grid or left_grid(rect, scale, shape, lens):
         out[rows] = cv2.remap(src, xs, ys, cv2.INTER_NEAREST, borderValue=0) > 0
     return out

@@ -12,7 +12,8 @@ from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
 from rigkit.pipeline.checks import check_distinct, check_parallax
-from rigkit.pipeline.depth import depth_map, mask_to_left
+from rigkit.pipeline.depth import depth_map, left_grid, mask_to_left
+from rigkit.pipeline.distortion import LensFit, fit_distortion
 from rigkit.pipeline.features import Matches, match_views
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, footprints, pseudo_rectify, warp_pair
@@ -58,6 +59,8 @@ class DepthResult:
     filled from its background neighbour); NaN where no depth. filled: (H, W) bool,
     pixels whose depth comes from hole filling rather than a match. no_surface: (H, W)
     bool, pixels with nothing to match (sky, blank or clipped areas): NaN in depth.
+    ``distortion``: the lens the depth went through (OpenCV ``k1, k2, p1, p2, k3``);
+    ``lens_fit``: how it was fitted from the views (None: taken as given).
     """
 
     depth: np.ndarray
@@ -72,6 +75,7 @@ class DepthResult:
     matches_lb: int
     settings: PipelineSettings = field(default_factory=PipelineSettings)
     distortion: Distortion = NO_DISTORTION
+    lens_fit: LensFit | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
 
     def diagnostics(self) -> dict[str, object]:
@@ -81,6 +85,7 @@ class DepthResult:
         return {
             "settings": self.settings.as_dict(),
             "distortion_k1_k2_p1_p2_k3": list(self.distortion),
+            "lens_fit": self.lens_fit.as_dict() if self.lens_fit else None,
             "disparity_offset_px": a.offset_px,
             "disparity_offset_sigma_px": a.offset_sigma_px,
             "right_yaw_correction_rad": a.beta,
@@ -156,11 +161,14 @@ def estimate_depth(
         report(stage, frac)
 
     size = (left.shape[1], left.shape[0])
-    lens = Lens(rig.focal_px, size, rig.distortion)
-    m_lr = _ideal(match_views(left, right, "left/right", settings=s), lens)
-    m_lb = _ideal(match_views(left, back, "left/back", settings=s), lens)
+    raw_lr = match_views(left, right, "left/right", settings=s)
+    raw_lb = match_views(left, back, "left/back", settings=s)
     check_distinct(left, right, back)  # after matching: a blank scene says so first
     lap("matching", 0.2)
+    lens, lens_fit = _lens(raw_lr, raw_lb, rig, size, s)
+    if lens_fit is not None:
+        lap("lens", 0.25)
+    m_lr, m_lb = _ideal(raw_lr, lens), _ideal(raw_lb, lens)
     rect = pseudo_rectify(m_lr, rig.focal_px, size, s)
     check_parallax(m_lr, rect)
     scale = s.stereo_scale
@@ -176,14 +184,19 @@ def estimate_depth(
     amb = remove_ambiguity(
         m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
     )
+    if lens_fit is not None:  # the lens is not exact: its uncertainty moves the offset too
+        offset_sigma = float(np.hypot(amb.offset_sigma_px, lens_fit.offset_sigma_px))
+        amb = replace(amb, offset_sigma_px=offset_sigma)
     lap("ambiguity", 0.85)
     dense, holes = fill_holes(disparity, s.fill_max_gap_px)
     # Holes filled across a footprint edge would extrapolate into unseen ground, and
     # a hole with no surface in it (sky between two buildings) is no occlusion.
     dense = restrict_to_footprints(np.where(surface, dense, np.nan), left_fp, right_fp)
     holes &= np.isfinite(dense)
-    depth = depth_map(dense, scale, rect, amb.beta, rig.baseline_lr_m, left.shape, lens)
-    both = mask_to_left(np.dstack([holes, ~surface & left_fp]), scale, rect, left.shape, lens)
+    grid = list(left_grid(rect, scale, left.shape, lens))  # once, for depth and masks
+    depth = depth_map(dense, scale, rect, amb.beta, rig.baseline_lr_m, left.shape, grid=grid)
+    both = mask_to_left(np.dstack([holes, ~surface & left_fp]), scale, rect, left.shape,
+                        grid=grid)
     filled, no_surface = both[..., 0], both[..., 1]
     sigma = _depth_sigma(depth, filled, rig, amb, s)
     lap("depth", 1.0)
@@ -199,7 +212,8 @@ def estimate_depth(
         matches_lr=len(m_lr.left),
         matches_lb=len(m_lb.left),
         settings=s,
-        distortion=rig.distortion,
+        distortion=lens.distortion,
+        lens_fit=lens_fit,
         timings_s=timings,
     )
 
@@ -217,6 +231,22 @@ def _settings(
         return replace(s, **changes)  # type: ignore[arg-type]
     except ValueError as exc:
         raise InputError(str(exc)) from None
+
+
+def _lens(
+    raw_lr: Matches, raw_lb: Matches, rig: RigGeometry, size: tuple[int, int],
+    s: PipelineSettings,
+) -> tuple[Lens, LensFit | None]:
+    """The lens the later stages use: the given one, refined from the views unless
+    ``s.distortion_terms`` is 0 (:mod:`rigkit.pipeline.distortion`)."""
+    given = Lens(rig.focal_px, size, rig.distortion)
+    if not s.distortion_terms:
+        return given, None
+    start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
+    fit = fit_distortion(
+        raw_lr, raw_lb, start, given, rig.baseline_lr_m, rig.baseline_lb_m, s.distortion_terms
+    )
+    return Lens(rig.focal_px, size, fit.distortion), fit
 
 
 def _ideal(m: Matches, lens: Lens) -> Matches:

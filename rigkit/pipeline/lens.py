@@ -10,9 +10,9 @@ and costs nothing.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from rigkit.geometry import NO_DISTORTION, Distortion, distort, undistort
@@ -55,18 +55,36 @@ class Lens:
 
     def ideal_rows(self, r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
         """Ideal positions of the recorded pixels of rows ``r0:r1``, all columns: (u, v),
-        each (r1 - r0, W) float64. Exact at every ``GRID_STEP``-th pixel and bilinear in
-        between (the distortion is a low-order polynomial: < 1e-4 px off)."""
+        each (r1 - r0, W) float64 (see :func:`smooth_map`)."""
         w = self.size[0]
-        uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(r0, r1, dtype=np.float64))
         if self.identity:
-            return uu, vv
-        gu = np.arange(0, w + GRID_STEP, GRID_STEP, dtype=np.float64)
-        gv = np.arange(r0, r1 + GRID_STEP, GRID_STEP, dtype=np.float64)
-        cu, cv = np.meshgrid(gu, gv)
-        grid = np.stack([cu, cv], axis=-1)
-        shift = (self.to_ideal(grid.reshape(-1, 2)).reshape(grid.shape) - grid).astype(np.float32)
-        mx = (uu / GRID_STEP).astype(np.float32)
-        my = ((vv - r0) / GRID_STEP).astype(np.float32)
-        d = cv2.remap(shift, mx, my, cv2.INTER_LINEAR)
-        return uu + d[..., 0], vv + d[..., 1]
+            return np.meshgrid(np.arange(w, dtype=np.float64), np.arange(r0, r1, dtype=np.float64))
+        return smooth_map(self.to_ideal, (0, w), (r0, r1))
+
+
+def smooth_map(
+    fn: Callable[[np.ndarray], np.ndarray], cols: tuple[int, int], rows: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth map of pixels, ``fn``: (N, 2) float64 (u, v) -> (N, 2), at every pixel of
+    columns ``cols[0]:cols[1]`` and rows ``rows[0]:rows[1]``: (u, v), each (rows, cols)
+    float64. Exact at every ``GRID_STEP``-th pixel and bilinear in between, in float64
+    (lens distortion and a near-affine homography bend by < 0.002 px within a cell,
+    even a lens that moves the corner by ~80 px). Far cheaper than ``fn`` at every pixel.
+    """
+    (c0, c1), (r0, r1) = cols, rows
+    gu = np.arange(c0, c1 + GRID_STEP, GRID_STEP, dtype=np.float64)
+    gv = np.arange(r0, r1 + GRID_STEP, GRID_STEP, dtype=np.float64)
+    knots = np.stack(np.meshgrid(gu, gv), axis=-1)
+    shift = fn(knots.reshape(-1, 2)).reshape(knots.shape) - knots
+    u = np.arange(c0, c1, dtype=np.float64)
+    v = np.arange(r0, r1, dtype=np.float64)
+    iu, fu = np.divmod(u - c0, GRID_STEP)
+    iv, fv = np.divmod(v - r0, GRID_STEP)
+    iu, iv = iu.astype(int), iv.astype(int)
+    fu, fv = fu / GRID_STEP, fv[:, None] / GRID_STEP
+    out = []
+    for k in range(2):  # separably: along each knot row first (small), then down
+        g = shift[..., k]
+        along = g[:, iu] * (1 - fu) + g[:, iu + 1] * fu
+        out.append(along[iv] * (1 - fv) + along[iv + 1] * fv)
+    return u[None, :] + out[0], v[:, None] + out[1]

@@ -30,7 +30,7 @@ from scipy.optimize import least_squares
 from rigkit.errors import PipelineError
 from rigkit.geometry import intrinsics, rot_z, rotvec_to_matrix
 from rigkit.pipeline.features import Matches
-from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.lens import Lens, smooth_map
 from rigkit.pipeline.settings import PipelineSettings
 
 ROLL_PRIOR_RAD = np.radians(2.0)
@@ -184,12 +184,15 @@ def _warp(
     if lens is None or lens.identity:
         return cv2.warpPerspective(img, S @ H @ np.linalg.inv(S), size, flags=interpolation)
     # Each canvas pixel's source: back through the homography to an ideal pixel, then
-    # through the lens to where the camera recorded it.
-    q = np.stack(np.meshgrid(np.arange(size[0]), np.arange(size[1])), axis=-1).reshape(-1, 2)
-    ideal = apply_homography(np.linalg.inv(S @ H), q.astype(np.float64))
-    src = apply_homography(S, lens.to_recorded(ideal)).astype(np.float32)
-    mx, my = src[:, 0].reshape(size[1], size[0]), src[:, 1].reshape(size[1], size[0])
-    return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    # through the lens to where the camera recorded it (a smooth map: see smooth_map).
+    back = np.linalg.inv(S @ H)
+
+    def source(q: np.ndarray) -> np.ndarray:
+        return apply_homography(S, lens.to_recorded(apply_homography(back, q)))
+
+    mx, my = smooth_map(source, (0, size[0]), (0, size[1]))
+    return cv2.remap(img, mx.astype(np.float32), my.astype(np.float32), interpolation,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
 def footprints(

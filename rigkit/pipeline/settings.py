@@ -17,7 +17,9 @@ class PipelineSettings:
 
     Matching: ``coarse_side_px`` side of the images SIFT runs on; ``n_points`` corners
     tracked at full resolution; ``fb_max_px`` forward-backward disagreement above which
-    a track is dropped. Rectification: ``disparity_margin_px`` added on both sides of
+    a track is dropped. Lens: ``distortion_terms`` radial distortion terms fitted from
+    the three views (1: k1, 2: k1 and k2), starting from the given distortion; 0 uses
+    the given distortion as it is. Rectification: ``disparity_margin_px`` added on both sides of
     the matched disparity range. Stereo: ``stereo_scale`` resolution of dense matching
     relative to the input (0.5 = half, as in the paper); ``fill_max_gap_px`` widest
     occlusion hole (stereo px) filled from its background neighbour, 0 = none;
@@ -33,6 +35,7 @@ class PipelineSettings:
     coarse_side_px: int = 1024
     n_points: int = 3000
     fb_max_px: float = 0.1
+    distortion_terms: int = 1
     disparity_margin_px: int = 24
     stereo_scale: float = 0.5
     fill_max_gap_px: int = 64
@@ -50,6 +53,8 @@ class PipelineSettings:
                 raise ValueError(f"{f.name} must be a non-negative number, got {value!r}")
         if not 0 < self.stereo_scale <= 1:
             raise ValueError(f"stereo_scale must be in (0, 1], got {self.stereo_scale!r}")
+        if self.distortion_terms > 2:
+            raise ValueError(f"distortion_terms must be 0, 1 or 2, got {self.distortion_terms}")
         if self.jackknife_blocks < 2:
             raise ValueError(f"jackknife_blocks must be at least 2, got {self.jackknife_blocks}")
 

@@ -63,12 +63,18 @@ def _summary(check: RigCheck) -> str:
 
 
 def _lens(profile: RigProfile) -> str:
+    fitted = profile.pipeline_settings().distortion_terms > 0
     if not any(profile.distortion):
-        return "none given (0.05 % at the corner left uncorrected costs ~1 % in depth)"
+        if fitted:
+            return "none given; fitted from the three views"
+        return ("none, and not fitted (pipeline.distortion_terms: 0): an uncorrected lens "
+                "bend costs percents in depth")
     fraction, px = corner_distortion(profile)
-    terms = ", ".join(f"{v:g}" for v in profile.distortion)
-    return (f"distortion k1,k2,p1,p2,k3 = {terms}: {100 * fraction:.2f} % ({px:.1f} px) at "
-            "the corner, undone by the pipeline about the image centre")
+    terms = ", ".join(f"{v:.4g}" for v in profile.distortion)
+    spec = profile.cameras["left"].lens_profile
+    source = f"lensfun {spec.lens} at {spec.focal_mm:.1f} mm, " if spec else ""
+    return (f"{source}k1,k2,p1,p2,k3 = {terms}: {100 * fraction:.2f} % ({px:.1f} px) at the "
+            f"corner; {'refined from' if fitted else 'not refined from'} the three views")
 
 
 def _field(label: str, text: str) -> str:
@@ -174,6 +180,7 @@ def _budget_table(check: RigCheck) -> str:
         ("C_lb", f"{lb.tolerance_m:g} m"),
         ("focal", f"{100 * model.focal_tolerance:g} %"),
         ("offset", f"{model.offset_error_px:g} px"),
+        ("lens", f"{model.lens_error_px:.2g} px"),
         ("total", "m"),
         ("total", "%"),
     ]
@@ -186,6 +193,7 @@ def _budget_table(check: RigCheck) -> str:
             f"{row.from_baseline_lb_m:.2f}",
             f"{row.from_focal_m:.2f}",
             f"{row.from_offset_m:.2f}",
+            f"{row.from_lens_m:.2f}",
             f"{row.total_m:.2f}",
             f"{100 * row.total_fraction:.2f}",
         ]
@@ -193,9 +201,11 @@ def _budget_table(check: RigCheck) -> str:
     ]
     reach = [f"  {100 * p:g} % depth error: {_reach_text(check, z)}" for p, z in check.reach_m]
     note = (
-        "  Each column is one source alone (dz = z^2 dd / (f C_lr) for disparity and offset,\n"
-        "  dz = z e for a relative error e); total is their root-sum-square. f and C_lr errors\n"
-        "  cancel at the back-camera anchor's depth: see docs/rig-profiles.md."
+        "  Each column is one source alone (dz = z^2 dd / (f C_lr) for disparity, offset and\n"
+        "  lens, dz = z e for a relative error e); total is their root-sum-square. f and C_lr\n"
+        "  errors cancel at the back-camera anchor's depth: see docs/rig-profiles.md.\n"
+        f"  lens: the disparity error of a lens model {model.lens_corner_px:.2g} px off at the "
+        f"corner, views turned by {RELATIVE_ROTATION_DEG:g} deg."
     )
     title = "depth error budget, metres (source and its size in the header)"
     return "\n".join([title, _table(header, rows), *reach, note])

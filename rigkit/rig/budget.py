@@ -10,6 +10,10 @@ Error budget, each source alone, to first order (|dz| in metres):
 * a disparity error dd (pixels):             dz = z**2 * dd / (f * C_lr)
 * a relative error e in f, C_lr or C_lb:     dz = z * e
 * an error dq in the global disparity offset: dz = z**2 * dq / (f * C_lr)
+* a lens distortion error that moves the image corner by dc (pixels): where a
+  rotation g between cameras moves the image by s = f tan(g), a radial error growing
+  as r**3 changes by up to 3 dc s / r_c between the two positions of a point: a
+  disparity error dd = 3 dc s / r_c (r_c: the corner's distance from the centre, px)
 
 The offset q is what the back camera fixes (paper Sec. 3, ambiguity removal); C_lb
 enters through the anchor depth z = C_lb / (m_l / m_b - 1), so its relative error
@@ -42,6 +46,10 @@ TARGET_FRACTIONS = (0.01, 0.03)
 """Relative depth errors whose onset range the check reports (1 % and 3 %)."""
 RELATIVE_ROTATION_DEG = 1.0
 """Rotation between cameras assumed for the affine residual (paper: up to 1 deg about x, y)."""
+LENS_FIT_CORNER_PX = 0.5
+"""Error at the image corner of the distortion the pipeline fits from the views, px at
+4608 x 3456 (field scenes with 0.3 px shimmer, docs/results.md; scaled by the image
+size for other sizes)."""
 
 STEREO_LIMIT = 0.01
 """Warn when the disparity error alone exceeds this fraction of the depth."""
@@ -122,6 +130,25 @@ def corner_distortion(profile: RigProfile) -> tuple[float, float]:
     return shift_px / (math.hypot(x, y) * f), shift_px
 
 
+def lens_corner_error_px(profile: RigProfile) -> float:
+    """How far the lens model the pipeline will use may be off at the image corner, px:
+    the self-calibration's error when it fits the lens from the views, otherwise the
+    given profile's own misfit (lensfun's model converted; a calibrated lens: 0)."""
+    if profile.pipeline_settings().distortion_terms:
+        return LENS_FIT_CORNER_PX * math.hypot(*profile.image_size) / math.hypot(4608, 3456)
+    spec = profile.cameras["left"]
+    return spec.lens_profile.fit_error_px if spec.lens_profile else 0.0
+
+
+def lens_disparity_error_px(
+    corner_error_px: float, focal_px: float, image_size: tuple[int, int]
+) -> float:
+    """Disparity error from a distortion error of ``corner_error_px`` at the corner,
+    for views turned by ``RELATIVE_ROTATION_DEG`` (module docstring)."""
+    shift = focal_px * math.tan(math.radians(RELATIVE_ROTATION_DEG))
+    return 3.0 * corner_error_px * shift / (math.hypot(*image_size) / 2.0)
+
+
 @dataclass(frozen=True)
 class ErrorModel:
     """The inputs of the error budget (pixels, fractions and Baseline in metres)."""
@@ -132,6 +159,8 @@ class ErrorModel:
     baseline_lb: Baseline
     disparity_error_px: float = DISPARITY_ERROR_PX
     offset_error_px: float = OFFSET_ERROR_PX
+    lens_corner_px: float = 0.0
+    lens_error_px: float = 0.0
 
     @classmethod
     def from_profile(
@@ -140,7 +169,8 @@ class ErrorModel:
         disparity_error_px: float = DISPARITY_ERROR_PX,
         offset_error_px: float = OFFSET_ERROR_PX,
     ) -> ErrorModel:
-        """The model for a profile (its focal length, tolerances and baselines)."""
+        """The model for a profile (its focal length, tolerances, baselines and lens)."""
+        corner = lens_corner_error_px(profile)
         return cls(
             focal_px=profile.focal_px,
             focal_tolerance=profile.focal_tolerance,
@@ -148,12 +178,14 @@ class ErrorModel:
             baseline_lb=profile.baseline_lb,
             disparity_error_px=disparity_error_px,
             offset_error_px=offset_error_px,
+            lens_corner_px=corner,
+            lens_error_px=lens_disparity_error_px(corner, profile.focal_px, profile.image_size),
         )
 
     @property
     def quadratic_term(self) -> float:
-        """a in total(z) = z * sqrt((a z)**2 + b**2): disparity and offset errors, 1/m."""
-        pixels = math.hypot(self.disparity_error_px, self.offset_error_px)
+        """a in total(z) = z * sqrt((a z)**2 + b**2): disparity, offset and lens errors, 1/m."""
+        pixels = math.hypot(self.disparity_error_px, self.offset_error_px, self.lens_error_px)
         return pixels / (self.focal_px * self.baseline_lr.value_m)
 
     @property
@@ -177,6 +209,7 @@ class BudgetRow:
     from_baseline_lb_m: float
     from_focal_m: float
     from_offset_m: float
+    from_lens_m: float = 0.0
 
     @property
     def total_m(self) -> float:
@@ -187,6 +220,7 @@ class BudgetRow:
             + self.from_baseline_lb_m**2
             + self.from_focal_m**2
             + self.from_offset_m**2
+            + self.from_lens_m**2
         )
 
     @property
@@ -210,6 +244,7 @@ def budget_row(model: ErrorModel, range_m: float) -> BudgetRow:
         from_offset_m=depth_error_from_disparity(
             range_m, model.focal_px, lr, model.offset_error_px
         ),
+        from_lens_m=depth_error_from_disparity(range_m, model.focal_px, lr, model.lens_error_px),
     )
 
 
@@ -420,10 +455,14 @@ def check_to_dict(check: RigCheck) -> dict[str, Any]:
             "k1_k2_p1_p2_k3": list(profile.distortion),
             "corner_fraction": corner_distortion(profile)[0],
             "corner_px": corner_distortion(profile)[1],
+            "fitted_from_views": bool(profile.pipeline_settings().distortion_terms),
+            "corner_error_px": model.lens_corner_px,
+            "disparity_error_px": model.lens_error_px,
         },
         "assumptions": {
             "disparity_error_px": model.disparity_error_px,
             "offset_error_px": model.offset_error_px,
+            "lens_error_px": model.lens_error_px,
             "focal_tolerance": model.focal_tolerance,
             "relative_rotation_deg": RELATIVE_ROTATION_DEG,
         },

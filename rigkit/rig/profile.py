@@ -39,6 +39,7 @@ from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Distortion
 from rigkit.pipeline import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings, setting_names, setting_type
+from rigkit.rig.lensfun import LensfunProfile, lensfun_profile
 from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
 
 PROFILE_VERSION = 1
@@ -83,6 +84,7 @@ class CameraSpec:
     principal_point_px: tuple[float, float] | None
     focal_given: tuple[str, float] | None = None
     distortion: Distortion = NO_DISTORTION
+    lens_profile: LensfunProfile | None = None
 
 
 @dataclass(frozen=True)
@@ -296,6 +298,11 @@ def _camera(value: Any, key: KeyPath) -> CameraSpec:
     principal = _optional(keys, "principal_point_px", key, _principal_point)
     if principal is not None:
         _check_principal_point(principal, resolution, key.child("principal_point_px"))
+    lens_profile = None
+    if isinstance(keys.get("distortion"), dict) and "lensfun" in keys["distortion"]:
+        lens_profile = _lensfun(
+            keys["distortion"], key.child("distortion"), resolution, focal, sensor
+        )
     return CameraSpec(
         model=key.child("model").line(keys["model"]),
         sensor_mm=sensor,
@@ -304,7 +311,10 @@ def _camera(value: Any, key: KeyPath) -> CameraSpec:
         focal_tolerance=tolerance,
         principal_point_px=principal,
         focal_given=(form, given),
-        distortion=_optional(keys, "distortion", key, _distortion) or NO_DISTORTION,
+        distortion=lens_profile.distortion
+        if lens_profile
+        else _optional(keys, "distortion", key, _distortion) or NO_DISTORTION,
+        lens_profile=lens_profile,
     )
 
 
@@ -445,6 +455,34 @@ def _distortion(value: Any, key: KeyPath) -> Distortion:
     return (k1, k2, p1, p2, k3)
 
 
+def _lensfun(
+    value: Any,
+    key: KeyPath,
+    resolution: tuple[int, int],
+    focal_px: float,
+    sensor: tuple[float, float] | None,
+) -> LensfunProfile:
+    """``{lensfun: CAMERA, lens: LENS, focal_mm: F}``: the distortion of lensfun's
+    profile (``lens`` only for interchangeable lenses; ``focal_mm`` the real focal
+    length, by default the profile's focal length over the sensor width)."""
+    keys = key.mapping(value, required=("lensfun",), optional=("lens", "focal_mm"))
+    if "focal_mm" in keys:
+        focal_mm = key.child("focal_mm").bounded(keys["focal_mm"], "mm", _MAX_FOCAL_MM)
+    elif sensor is not None:
+        focal_mm = focal_px * sensor[0] / resolution[0]
+    else:
+        raise key.child("focal_mm").error(
+            "missing: give the real focal length in mm (or camera.sensor_mm) to look the "
+            "lens up"
+        )
+    lens = key.child("lens").line(keys["lens"]) if "lens" in keys else None
+    camera = key.child("lensfun").line(keys["lensfun"])
+    try:
+        return lensfun_profile(camera, focal_mm, resolution, focal_px, lens)
+    except InputError as exc:
+        raise key.child("lensfun").error(str(exc)) from None
+
+
 def _pipeline(value: Any, key: KeyPath) -> Mapping[str, float]:
     """Overrides of :class:`PipelineSettings`, checked by constructing them."""
     given = key.mapping(value, required=(), optional=setting_names())
@@ -510,7 +548,10 @@ def _camera_to_dict(spec: CameraSpec) -> dict[str, Any]:
     data["focal_length"] = {form: value, "tolerance_fraction": spec.focal_tolerance}
     if spec.principal_point_px is not None:
         data["principal_point_px"] = list(spec.principal_point_px)
-    if spec.distortion != NO_DISTORTION:
+    if spec.lens_profile is not None:
+        lf = spec.lens_profile
+        data["distortion"] = {"lensfun": lf.camera, "lens": lf.lens, "focal_mm": lf.focal_mm}
+    elif spec.distortion != NO_DISTORTION:
         data["distortion"] = dict(zip(_DISTORTION_TERMS, spec.distortion, strict=True))
     return data
 

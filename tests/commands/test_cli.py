@@ -88,6 +88,36 @@ def test_depth_takes_bursts_and_a_distortion(scene_dir, truth, tmp_path):
     assert len(meta["inputs"]["left"]) == 2
     assert meta["rig"]["distortion_k1_k2_p1_p2_k3"] == [0.0] * 5
     assert meta["settings"]["min_texture"] == 3.0
+    # Fitted from the views by default: the lens the depth used is the fitted one.
+    assert meta["lens_fit"]["start_k1_k2_p1_p2_k3"] == [0.0] * 5
+    assert meta["distortion_k1_k2_p1_p2_k3"] == meta["lens_fit"]["k1_k2_p1_p2_k3"]
+
+
+def test_depth_with_a_lensfun_profile_held_fixed(scene_dir, truth, tmp_path):
+    # The paper's camera's profile on a scene rendered without distortion: held fixed,
+    # the depth goes through exactly that lens, and the sidecar says so.
+    out = tmp_path / "d.npy"
+    args = _depth_args(scene_dir, out, "--focal-px", str(truth.focal_px), "--baseline-lr",
+                       "2", "--baseline-lb", "2", "--lensfun", "Coolpix P1000:71.9",
+                       "--fixed-lens")
+    assert main(args) == 0
+    meta = json.loads((tmp_path / "d.json").read_text())
+    assert meta["lens_fit"] is None and meta["settings"]["distortion_terms"] == 0
+    assert meta["distortion_k1_k2_p1_p2_k3"][0] > 0
+    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"] == meta["distortion_k1_k2_p1_p2_k3"]
+
+
+@pytest.mark.parametrize(
+    "value, message",
+    [("Coolpix P1000", "expected CAMERA:FOCAL_MM"), ("Koolpix Q1:50", "lensfun has no camera")],
+)
+def test_bad_lensfun_flag_is_one_line(scene_dir, tmp_path, capsys, value, message):
+    args = _depth_args(scene_dir, tmp_path / "d.npy", "--focal-px", "9000",
+                       "--baseline-lr", "2", "--baseline-lb", "2", "--lensfun", value)
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+    assert not list(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize(

@@ -20,7 +20,10 @@ def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
     assert "53,251 px +-1 %" in out
     assert "4.95 x 3.72 deg" in out
     assert "1/150" in out and "0.382" in out  # at the profile's nominal 300 m
-    assert "3 % depth error: reached at 4,667 m" in out
+    # 0.25 px disparity, 0.5 px offset and 0.48 px from a lens fitted to 0.5 px at the
+    # corner: a = 0.74 px / (f C_lr); b = 1.73 %; z = sqrt(0.03^2 - b^2) / a.
+    assert "3 % depth error: reached at 3,528 m" in out
+    assert "lens           none given; fitted from the three views" in out
     assert out.rstrip().endswith("warnings: none")
 
 

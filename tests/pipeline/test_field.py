@@ -11,6 +11,8 @@ import pytest
 
 from rigkit.errors import InputError, PipelineError
 from rigkit.pipeline import RigGeometry, estimate_depth
+from rigkit.pipeline.distortion import corner_shift_px, three_view_tracks
+from rigkit.pipeline.features import Matches
 from rigkit.pipeline.images import load_grey
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.settings import PipelineSettings
@@ -48,22 +50,53 @@ def test_no_depth_in_the_sky_and_full_density_on_the_surface(sky_scene) -> None:
     assert result.diagnostics()["no_surface_fraction"] > 0.1
 
 
-def test_a_given_lens_distortion_is_undone(tmp_path) -> None:
-    # 0.4 % radial scale at the corner of a 4.1 deg field.
+@pytest.fixture(scope="module")
+def lens_scene(tmp_path_factory):
+    """A scene through a lens with 0.4 % radial scale at the corner of a 4.1 deg field.
+    One camera at the three positions: one principal point, which the pipeline takes at
+    the image centre (the distortion's centre too)."""
     k1 = 0.004 / ((SMALL.width**2 + SMALL.height**2) / 4 / SMALL.focal_px**2)
-    # One camera at the three positions: one principal point, which the pipeline takes
-    # at the image centre (the distortion's centre too).
     params = replace(SMALL, distortion=(k1, 0, 0, 0, 0), max_pp_offset_px=0.0)
-    truth, images = _scene(tmp_path, "lens", params)
-    judged = visible_in_right(truth)
-    scores = {}
-    for given in (False, True):
-        rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m,
-                          (k1, 0, 0, 0, 0) if given else (0, 0, 0, 0, 0))
-        result = estimate_depth(*images, rig)
-        scores[given] = depth_metrics(result.depth, truth.depth("left"), judged)
-    assert scores[True].under_3 > 0.9 and abs(scores[True].median_bias) < 0.01
-    assert scores[False].under_3 < 0.1  # not undone, 0.4 % at the corner ruins it
+    return _scene(tmp_path_factory.mktemp("lens"), "lens", params)
+
+
+@pytest.mark.parametrize(
+    ("given", "fitted", "good"),
+    [(False, False, False), (True, False, True), (False, True, True)],
+    ids=["not-given-not-fitted", "given", "fitted-from-the-views"],
+)
+def test_lens_distortion_given_or_fitted_is_undone(lens_scene, given, fitted, good) -> None:
+    truth, images = lens_scene
+    k1 = truth.cameras["left"].distortion[0]
+    rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m,
+                      (k1, 0, 0, 0, 0) if given else (0, 0, 0, 0, 0))
+    settings = PipelineSettings(distortion_terms=1 if fitted else 0)
+    result = estimate_depth(*images, rig, settings=settings)
+    m = depth_metrics(result.depth, truth.depth("left"), visible_in_right(truth))
+    if good:
+        assert m.under_3 > 0.9 and abs(m.median_bias) < 0.01
+    else:
+        assert m.under_3 < 0.1  # 0.4 % at the corner, not undone, ruins it
+    if fitted:
+        size = (SMALL.width, SMALL.height)
+        true_corner = corner_shift_px(Lens(truth.focal_px, size, (k1, 0.0, 0.0, 0.0, 0.0)))
+        fit = result.lens_fit
+        assert fit is not None and fit.start == (0.0,) * 5
+        assert abs(fit.corner_px - true_corner) < 0.15 * true_corner
+        assert abs(fit.corner_px - true_corner) < 4 * fit.corner_sigma_px + 0.05
+        assert result.distortion == fit.distortion
+        assert result.diagnostics()["lens_fit"]["tracks"] == fit.tracks > 100
+    else:
+        assert result.lens_fit is None and result.diagnostics()["lens_fit"] is None
+
+
+def test_three_view_tracks_pair_the_same_left_corner() -> None:
+    left = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
+    m_lr = Matches(left, left + 10, np.eye(2, 3), 3)
+    m_lb = Matches(left[[2, 0]], left[[2, 0]] - 1, np.eye(2, 3), 2)
+    pl, pr, pb = three_view_tracks(m_lr, m_lb)
+    assert np.array_equal(pl, left[[0, 2]])
+    assert np.array_equal(pr, pl + 10) and np.array_equal(pb, pl - 1)
 
 
 def test_lens_maps_are_inverse_and_identity_without_distortion() -> None:

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from rigkit.errors import InputError
+from rigkit.reporting.rig_check import format_check
 from rigkit.rig import Baseline, load_rig
 from rigkit.rig.budget import (
     ErrorModel,
@@ -161,6 +163,27 @@ def test_too_close_for_overlap_is_flagged(tmp_path: Path) -> None:
     check = check_rig(profile, [40.0])  # disparity 2,650 px of 4,608: 42 % overlap
     assert [finding.code for finding in check.findings] == ["overlap"]
     assert "overlap by only 42 %" in check.findings[0].message
+
+
+def test_lens_error_enters_the_budget(tmp_path: Path) -> None:
+    # Fitted from the views (the default): the self-calibration's corner error, 0.5 px
+    # at 4608 x 3456, seen by views turned 1 deg: dd = 3 * 0.5 * f tan(1 deg) / r_c.
+    profile = load_rig(_profile(tmp_path, P1000_FOCAL_PX, 2.0, 2.0))
+    model = check_rig(profile, [300.0]).model
+    r_c = math.hypot(4608, 3456) / 2
+    expected = 3 * 0.5 * P1000_FOCAL_PX * math.tan(math.radians(1.0)) / r_c
+    assert model.lens_corner_px == pytest.approx(0.5)
+    assert model.lens_error_px == pytest.approx(expected)
+    row = budget_row(model, 300.0)
+    assert row.from_lens_m == pytest.approx(depth_error_from_disparity(300.0, P1000_FOCAL_PX,
+                                                                      2.0, expected))
+    assert row.total_m > budget_row(replace(model, lens_error_px=0.0), 300.0).total_m
+    # Held fixed with no distortion given: nothing to add, and the lens line says so.
+    text = profile.source.read_text() + "pipeline: {distortion_terms: 0}\n"
+    profile.source.write_text(text)
+    fixed = check_rig(load_rig(profile.source), [300.0])
+    assert fixed.model.lens_error_px == 0.0
+    assert "not fitted" in format_check(fixed)
 
 
 def test_ranges_must_be_positive() -> None:

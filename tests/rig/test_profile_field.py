@@ -69,3 +69,58 @@ def test_no_distortion_and_defaults_when_absent(tmp_path) -> None:
 def test_bad_values_name_the_key(tmp_path, extra_camera, extra, message) -> None:
     with pytest.raises(InputError, match=message):
         load_rig(_profile(tmp_path, extra_camera, extra))
+
+
+def test_lensfun_profile_by_camera_and_focal_length(tmp_path) -> None:
+    # The paper's camera at ~400 mm-equivalent (71.9 mm real): lensfun's profile bends
+    # the image by a few percent between the centre and the corner.
+    path = _profile(tmp_path, extra_camera="  distortion: {lensfun: Coolpix P1000, focal_mm: 71.9}")
+    rig = load_rig(path)
+    spec = rig.cameras["left"].lens_profile
+    assert spec is not None and "P1000" in spec.lens and spec.focal_mm == 71.9
+    assert rig.distortion == spec.distortion and rig.distortion[0] > 0
+    assert 0.95 < spec.centre_scale < 1.0 and spec.fit_error_px < 3.0
+    again = tmp_path / "again.yaml"
+    again.write_text(dump_rig(rig))
+    assert "lensfun" in again.read_text()
+    assert load_rig(again).distortion == rig.distortion
+
+
+def test_lensfun_conversion_follows_lensfuns_own_map() -> None:
+    import lensfunpy
+    import numpy as np
+
+    from rigkit.geometry import distort
+    from rigkit.rig.lensfun import lensfun_profile
+
+    w, h, f = 4608, 3456, 53251.0
+    spec = lensfun_profile("Coolpix P1000", 71.9, (w, h), f)
+    db = lensfunpy.Database()
+    cam = next(c for c in db.cameras if c.model == "Coolpix P1000")
+    lens = db.find_lenses(cam, loose_search=True)[0]
+    mod = lensfunpy.Modifier(lens, cam.crop_factor, w, h)
+    mod.initialize(71.9, 4.0, 1000.0)
+    # lensfun: corrected pixel -> recorded pixel, on a row a third of the way down.
+    y = h // 3
+    recorded = mod.apply_geometry_distortion(0, y, w, 1)[0].astype(np.float64)
+    c = np.array([(w - 1) / 2, (h - 1) / 2])
+    # rigkit's model: the corrected pixel is ideal at lensfun's scale, s at the centre.
+    ideal = (np.stack([np.arange(w), np.full(w, y)], axis=1) - c) * spec.centre_scale / f
+    xd, yd = distort(ideal[:, 0], ideal[:, 1], spec.distortion)
+    ours = np.stack([xd, yd], axis=1) * f + c
+    assert np.abs(ours - recorded).max() < spec.fit_error_px + 0.05
+    assert np.abs(ours - recorded).max() < 3.0
+
+
+@pytest.mark.parametrize(
+    ("distortion", "message"),
+    [
+        ("{lensfun: Koolpix P1000, focal_mm: 71.9}", r"no camera 'Koolpix P1000'; did you mean"),
+        ("{lensfun: Coolpix P1000, focal_mm: 900}", r"covers 4.3-539 mm, not 900 mm"),
+        ("{lensfun: Coolpix P1000}", r"distortion\.focal_mm: missing"),
+        ("{lensfun: Canon EOS 5D, focal_mm: 50}", r"name the lens"),
+    ],
+)
+def test_lensfun_lookup_errors_name_the_key(tmp_path, distortion, message) -> None:
+    with pytest.raises(InputError, match=message):
+        load_rig(_profile(tmp_path, extra_camera=f"  distortion: {distortion}"))

@@ -1,0 +1,284 @@
+"""Stage 0b: the lens distortion, fitted from the three views themselves.
+
+RAW frames are not distortion-corrected, and a telephoto lens bends its image by a
+fraction of a percent towards the corner. Uncorrected, that bend becomes a smooth
+disparity error of several pixels (the same scene point lands ~1000 px apart in the
+left and right images of a rig turned by 1 deg) and a wrong back-view magnification:
+depth errors of percents. The three views are taken through one lens (or identical
+ones), and the rotations between them that make its bend harmful also make it
+observable - the same idea as self-calibrating distortion from image matches
+(Fitzgibbon, CVPR 2001; Kukelova and Pajdla, radial distortion in minimal problems).
+
+Here it is a small bundle adjustment over the corners tracked into both other views
+(:mod:`rigkit.pipeline.features` tracks the same left corners into each): every
+track has one unknown inverse depth; the right camera has a rotation and a baseline
+direction in the image plane (length C_lr), the back camera a rotation and a
+sideways/vertical offset (C_lb behind); the lens has radial terms ``k1`` (and ``k2``),
+measured about the image centre like :class:`~rigkit.pipeline.lens.Lens`. The
+right-camera yaw and the depths trade off (the paper's disparity ambiguity); the back
+view's magnification settles them, as in :mod:`rigkit.pipeline.ambiguity`, so the
+radial terms are fitted against a full three-view geometry. A given distortion (a
+profile, ``camera.distortion``) is the starting point; tangential terms and ``k3`` are
+kept as given. The fitted lens replaces the given one only where the two differ at the
+corner by more than twice the fit's standard error: heat shimmer moves the fit by
+about that much even when the given lens is right.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from rigkit.geometry import Distortion, distort, rotvec_to_matrix, undistort
+from rigkit.pipeline.checks import check_magnification
+from rigkit.pipeline.features import Matches
+from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.rectify import Rectification
+
+MIN_TRACKS = 50
+MAX_TRACKS = 1500  # enough for two global terms; the cost grows with the tracks
+LOSS_SCALE_PX = 0.3  # residual where the robust loss starts to discount a track
+SIGNIFICANCE = 2.0  # the fit replaces the given lens only this many sigma away from it
+MAX_DEPTH_STEPS = 8
+DEPTH_TOL_PX = 1e-6  # far below what the outer finite differences resolve (~1e-3 px)
+
+
+@dataclass(frozen=True)
+class LensFit:
+    """Result of :func:`fit_distortion`.
+
+    ``distortion``: the lens to use, OpenCV ``k1, k2, p1, p2, k3`` (normalised
+    coordinates about the image centre): ``fitted`` where the fit differs from the
+    ``start`` it began from by more than ``SIGNIFICANCE`` standard errors at the
+    corner (``significant``), otherwise ``start``; ``corner_px``: how far the fitted
+    lens moves the image corner radially (px, + outwards), with its standard
+    error ``corner_sigma_px`` and the start's ``start_corner_px``; ``offset_sigma_px``:
+    the disparity offset's standard error that the lens's uncertainty carries (px,
+    added to the back camera's); ``tracks``: corners seen in all three views that the
+    fit used; ``rms_px``: their reprojection RMS.
+    """
+
+    distortion: Distortion
+    start: Distortion
+    fitted: Distortion
+    significant: bool
+    corner_px: float
+    corner_sigma_px: float
+    start_corner_px: float
+    offset_sigma_px: float
+    tracks: int
+    rms_px: float
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "k1_k2_p1_p2_k3": list(self.distortion),
+            "start_k1_k2_p1_p2_k3": list(self.start),
+            "fitted_k1_k2_p1_p2_k3": list(self.fitted),
+            "significant": self.significant,
+            "corner_shift_px": _number(self.corner_px),
+            "corner_shift_sigma_px": _number(self.corner_sigma_px),
+            "start_corner_shift_px": _number(self.start_corner_px),
+            "offset_sigma_px": _number(self.offset_sigma_px),
+            "tracks": self.tracks,
+            "reprojection_rms_px": _number(self.rms_px),
+        }
+
+
+def _number(value: float) -> float | None:
+    """For JSON: rounded, None where not a finite number (no fit)."""
+    return round(value, 4) if np.isfinite(value) else None
+
+
+def three_view_tracks(m_lr: Matches, m_lb: Matches) -> tuple[np.ndarray, ...]:
+    """Left corners matched in both other views: (left, right, back), each (N, 2)
+    float64 recorded px. Both match sets track the same left corners, so a track is a
+    left position present in both."""
+    key_r = m_lr.left[:, 0] + 1j * m_lr.left[:, 1]
+    key_b = m_lb.left[:, 0] + 1j * m_lb.left[:, 1]
+    _, ir, ib = np.intersect1d(key_r, key_b, assume_unique=False, return_indices=True)
+    return m_lr.left[ir], m_lr.other[ir], m_lb.other[ib]
+
+
+def corner_radius(lens: Lens) -> float:
+    """The image corner's distance from the centre, normalised (r / f)."""
+    w, h = lens.size
+    return float(np.hypot(w - 1, h - 1) / 2 / lens.focal_px)
+
+
+def corner_shift_px(lens: Lens) -> float:
+    """How far ``lens`` moves the image corner along the radius (px, + outwards)."""
+    rc = corner_radius(lens)
+    x = rc / np.sqrt(1 + (lens.size[1] / lens.size[0]) ** 2)
+    y = x * lens.size[1] / lens.size[0]
+    xd, yd = distort(np.array(x), np.array(y), lens.distortion)
+    return float((np.hypot(xd, yd) - rc) * lens.focal_px)
+
+
+class _Problem:
+    """The bundle adjustment by variable projection (Golub and Pereyra): the outer
+    parameters are ``n_terms`` radial increments (as the fraction of the corner radius
+    they move the corner by), the right camera's baseline angle and rotation vector, and
+    the back camera's rotation vector and (x, y) offset (m); each track's inverse depth
+    is solved for inside, so the outer problem has a handful of unknowns and the
+    yaw/depth trade-off cannot slow it down."""
+
+    def __init__(self, lens, tracks, c_lr, c_lb, n_terms, w0):
+        self.lens, self.n_terms = lens, n_terms
+        self.c_lr, self.c_lb = c_lr, c_lb
+        self.pl, self.pr, self.pb = tracks
+        self.rc = corner_radius(lens)
+        self.w = np.full(len(self.pl), w0)
+
+    def distortion(self, p: np.ndarray) -> Distortion:
+        k = list(self.lens.distortion)
+        for j in range(self.n_terms):
+            k[j if j < 2 else 4] += p[j] / self.rc ** (2 * (j + 1))
+        return (k[0], k[1], k[2], k[3], k[4])
+
+    def _setup(self, p: np.ndarray):
+        """Per-parameter constants: the lens, and per other view the left rays (N, 3)
+        rotated into it, its rotated centre and the positions it saw."""
+        n = self.n_terms
+        d = self.distortion(p)
+        nl = (self.pl - self.lens.centre) / self.lens.focal_px
+        x, y = undistort(nl[:, 0], nl[:, 1], d)
+        rays = np.stack([x, y, np.ones_like(x)], axis=1)
+        phi = p[n]
+        c_r = self.c_lr * np.array([np.cos(phi), np.sin(phi), 0.0])
+        c_b = np.array([p[n + 7], p[n + 8], -self.c_lb])
+        views = []
+        for rv, c, seen in ((p[n + 1 : n + 4], c_r, self.pr), (p[n + 4 : n + 7], c_b, self.pb)):
+            R = rotvec_to_matrix(rv)
+            views.append((rays @ R.T, R @ c, seen))
+        return d, views
+
+    def _track_residuals(self, setup, w: np.ndarray) -> np.ndarray:
+        """(N, 4): right (u, v) and back (u, v) reprojection errors, px, for inverse
+        depths ``w`` (1/m). The point ray / w seen from centre c projects as
+        R ray - w R c (up to scale)."""
+        d, views = setup
+        out = []
+        for rays, Rc, seen in views:
+            Xc = rays - w[:, None] * Rc
+            x, y = distort(Xc[:, 0] / Xc[:, 2], Xc[:, 1] / Xc[:, 2], d)
+            uv = np.stack([x, y], axis=1) * self.lens.focal_px + self.lens.centre
+            out.append(uv - seen)
+        return np.concatenate(out, axis=1)
+
+    def residuals(self, p: np.ndarray) -> np.ndarray:
+        setup = self._setup(p)
+        w = self.w  # warm start: the last call's depths are within a step of these
+        r = self._track_residuals(setup, w)
+        for _ in range(MAX_DEPTH_STEPS):  # Gauss-Newton per track, nearly linear in w
+            h = 1e-3 * w  # nearly linear: a wide step is exact and far above rounding
+            J = (self._track_residuals(setup, w + h) - r) / h[:, None]
+            step = -(J * r).sum(axis=1) / np.maximum((J * J).sum(axis=1), 1e-300)
+            w = w + step
+            r = self._track_residuals(setup, w)
+            # Converged when the residuals (but those of a few hopeless tracks, which
+            # the robust loss ignores) move by less than DEPTH_TOL_PX.
+            moved = np.abs(step) * np.sqrt((J * J).sum(axis=1))
+            if np.percentile(moved, 99) < DEPTH_TOL_PX:
+                break
+        self.w = w
+        return r.ravel()
+
+
+def _initial(problem: _Problem, rect: Rectification, m_lb: Matches) -> np.ndarray:
+    """Start: the rectification's right rotation and baseline angle, and the back
+    view's rotation from its coarse affine map (as :mod:`rigkit.pipeline.ambiguity`)."""
+    f = problem.lens.focal_px
+    A = m_lb.affine[:, :2]
+    s = float(np.sqrt(abs(np.linalg.det(A))))
+    turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
+    centre = problem.lens.centre
+    du, dv = A @ centre + m_lb.affine[:, 2] - s * centre
+    baseline = rect.R_rect.T @ np.array([1.0, 0.0, 0.0])
+    rv, _ = cv2.Rodrigues(rect.R_lr.T)
+    return np.concatenate(
+        [
+            np.zeros(problem.n_terms),
+            [np.arctan2(baseline[1], baseline[0])],
+            rv.ravel(),
+            [np.arctan(dv / f), -np.arctan(du / f), -turn, 0.0, 0.0],
+        ]
+    )
+
+
+def fit_distortion(
+    m_lr: Matches,
+    m_lb: Matches,
+    rect: Rectification,
+    lens: Lens,
+    baseline_lr_m: float,
+    baseline_lb_m: float,
+    n_terms: int = 2,
+) -> LensFit:
+    """Refine ``lens``'s radial terms (``n_terms``: 1 = k1, 2 = k1 and k2) from the
+    left/right and left/back matches (recorded px). ``rect`` is a rectification of
+    the pair under ``lens``, used only as the starting rotation. With fewer than
+    ``MIN_TRACKS`` corners seen in all three views the given lens is kept (``tracks``
+    says how many; ``corner_sigma_px`` is infinite)."""
+    pl, pr, pb = three_view_tracks(m_lr, m_lb)
+    if len(pl) < MIN_TRACKS:
+        # Too little seen by all three views to tell: keep the given lens, and say so.
+        corner = corner_shift_px(lens)
+        return LensFit(lens.distortion, lens.distortion, lens.distortion, False, corner,
+                       float("inf"), corner, 0.0, len(pl), float("nan"))
+    keep = np.unique(np.linspace(0, len(pl) - 1, min(len(pl), MAX_TRACKS)).astype(int))
+    tracks = (pl[keep], pr[keep], pb[keep])
+    mag = float(np.sqrt(abs(np.linalg.det(m_lb.affine[:, :2]))))
+    z0 = check_magnification(mag, baseline_lb_m)
+    problem = _Problem(lens, tracks, baseline_lr_m, baseline_lb_m, n_terms, 1.0 / z0)
+    p0 = _initial(problem, rect, m_lb)
+    scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
+    opts = dict(x_scale=scales, diff_step=1e-6, method="trf")
+    fit = least_squares(problem.residuals, p0, **opts)
+    fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
+    fitted = problem.distortion(fit.x)
+    corner_sigma, offset_sigma = _lens_sigmas(fit, problem, lens)
+    err = np.linalg.norm(problem.residuals(fit.x).reshape(-1, 2), axis=1)
+    corner = corner_shift_px(Lens(lens.focal_px, lens.size, fitted))
+    start_corner = corner_shift_px(lens)
+    # Noise in the tracks (heat shimmer above all) moves the fit by its sigma even when
+    # the given lens is right; a change the views cannot tell from that is not taken.
+    significant = abs(corner - start_corner) > SIGNIFICANCE * corner_sigma
+    return LensFit(
+        distortion=fitted if significant else lens.distortion,
+        start=lens.distortion,
+        fitted=fitted,
+        significant=significant,
+        corner_px=corner,
+        corner_sigma_px=corner_sigma,
+        offset_sigma_px=offset_sigma,
+        start_corner_px=start_corner,
+        tracks=len(tracks[0]),
+        rms_px=float(np.sqrt(np.mean(err[err < 3.0] ** 2))),
+    )
+
+
+def _lens_sigmas(fit, problem: _Problem, lens: Lens) -> tuple[float, float]:
+    """Standard errors from the Gauss-Newton covariance of the outer parameters (the
+    depths are already eliminated: variable projection): of the corner shift (px), and
+    of the part of the right camera's yaw that the radial terms' uncertainty carries,
+    as a disparity offset (px). The later stages take the lens as exact; this second
+    figure is what that hides from the offset's standard error."""
+    n = problem.n_terms
+    J, r = fit.jac, fit.fun
+    dof = max(r.size - J.shape[1] - len(problem.pl), 1)
+    try:
+        cov = np.linalg.inv(J.T @ J) * float(r @ r) / dof
+    except np.linalg.LinAlgError:
+        return float("inf"), float("inf")
+    # Each term is the fraction of the corner radius it moves the corner by.
+    grad = np.full(n, corner_radius(lens) * lens.focal_px)
+    corner = float(np.sqrt(max(grad @ cov[:n, :n] @ grad, 0.0)))
+    # The yaw is the y component of the right camera's rotation vector; what the terms
+    # explain of its variance is c^T S^-1 c, c its covariance with them.
+    yaw = n + 2
+    c = cov[:n, yaw]
+    explained = float(c @ np.linalg.solve(cov[:n, :n], c))
+    return corner, lens.focal_px * float(np.sqrt(max(explained, 0.0)))

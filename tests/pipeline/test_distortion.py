@@ -1,0 +1,99 @@
+"""The lens fitted from the three views, on exact projections with known cameras: it
+recovers the bend, and keeps the given lens when the views cannot tell it from noise
+or see too few corners in common."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rigkit.geometry import Camera, euler_to_matrix, focal_from_fov, intrinsics
+from rigkit.pipeline.distortion import corner_shift_px, fit_distortion
+from rigkit.pipeline.features import Matches
+from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.rectify import pseudo_rectify
+
+W, H = 1600, 1200
+F = focal_from_fov(W, 5.0)
+
+
+def _affine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.linalg.lstsq(np.c_[a, np.ones(len(a))], b, rcond=None)[0].T
+
+
+def _tracks(k1: float, noise_px: float, rng: np.random.Generator, n: int = 1200):
+    """Left/right and left/back matches of points 250-350 m away, seen by one lens at
+    the three positions (right 2 m to the side, back 2 m behind and 0.3 m up, each
+    turned by about a degree); Gaussian noise of ``noise_px`` on the other views."""
+    K = intrinsics(F, (W - 1) / 2, (H - 1) / 2)
+    lens = (k1, 0.0, 0.0, 0.0, 0.0)
+    cams = {
+        name: Camera(K=K, R=euler_to_matrix(*e).T, C=np.array(c), width=W, height=H,
+                     distortion=lens)
+        for name, e, c in (
+            ("left", (0, 0, 0), (0.0, 0.0, 0.0)),
+            ("right", (0.6, -0.8, 2.0), (2.0, 0.0, 0.0)),
+            ("back", (-0.5, 0.7, -3.0), (0.0, -0.3, -2.0)),
+        )
+    }
+    u, v = rng.uniform(20, W - 20, n), rng.uniform(20, H - 20, n)
+    X = cams["left"].rays(u, v) * rng.uniform(250, 350, n)[:, None]
+    left = np.stack([u, v], axis=1)
+    seen = {}
+    for name in ("right", "back"):
+        p, _ = cams[name].project(X)
+        seen[name] = p + rng.normal(0, noise_px, p.shape)
+    inside = np.all([(p[:, 0] > 0) & (p[:, 0] < W) & (p[:, 1] > 0) & (p[:, 1] < H)
+                     for p in seen.values()], axis=0)
+    left = left[inside]
+    return tuple(
+        Matches(left, seen[name][inside], _affine(left, seen[name][inside]), int(inside.sum()))
+        for name in ("right", "back")
+    )
+
+
+def _fit(m_lr: Matches, m_lb: Matches, start=(0.0,) * 5):
+    lens = Lens(F, (W, H), start)
+    return fit_distortion(m_lr, m_lb, pseudo_rectify(m_lr, F, (W, H)), lens, 2.0, 2.0, 1)
+
+
+def _k1_for_corner(fraction: float) -> float:
+    return fraction / (np.hypot(W - 1, H - 1) / 2 / F) ** 2
+
+
+def test_recovers_the_bend_from_exact_projections() -> None:
+    k1 = _k1_for_corner(0.003)  # 0.3 % at the corner: ~3 px
+    fit = _fit(*_tracks(k1, 0.0, np.random.default_rng(1)))
+    true = corner_shift_px(Lens(F, (W, H), (k1, 0, 0, 0, 0)))
+    assert true == pytest.approx(0.003 * np.hypot(W - 1, H - 1) / 2, rel=0.01)
+    assert fit.significant and fit.distortion == fit.fitted
+    assert fit.corner_px == pytest.approx(true, abs=1e-3)
+    assert fit.rms_px < 1e-3
+
+
+def test_a_wrong_start_is_corrected() -> None:
+    k1 = _k1_for_corner(0.003)
+    fit = _fit(*_tracks(k1, 0.05, np.random.default_rng(2)), start=(3 * k1, 0, 0, 0, 0))
+    true = corner_shift_px(Lens(F, (W, H), (k1, 0, 0, 0, 0)))
+    assert fit.start_corner_px == pytest.approx(3 * true, rel=0.01)
+    assert fit.significant
+    assert abs(fit.corner_px - true) < max(4 * fit.corner_sigma_px, 0.05 * true)
+
+
+def test_noise_alone_does_not_change_the_lens() -> None:
+    # No distortion, 0.3 px of noise (shimmer-sized): the fit wanders by about its
+    # sigma, and the pipeline keeps the given (here: no) distortion.
+    fit = _fit(*_tracks(0.0, 0.3, np.random.default_rng(3)))
+    assert abs(fit.corner_px) < 3 * fit.corner_sigma_px
+    assert not fit.significant and fit.distortion == (0.0,) * 5
+    assert fit.offset_sigma_px >= 0.0
+
+
+def test_too_few_three_view_tracks_keep_the_given_lens() -> None:
+    m_lr, m_lb = _tracks(0.0, 0.0, np.random.default_rng(4), n=60)
+    few = Matches(m_lb.left[:20], m_lb.other[:20], m_lb.affine, 20)
+    start = (0.1, 0.0, 0.0, 0.0, 0.0)
+    fit = _fit(m_lr, few, start=start)
+    assert fit.tracks == 20 and not fit.significant
+    assert fit.distortion == fit.start == start and fit.corner_sigma_px == np.inf
+    assert fit.as_dict()["tracks"] == 20 and fit.as_dict()["corner_shift_sigma_px"] is None
