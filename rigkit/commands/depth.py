@@ -158,7 +158,10 @@ def run(args: argparse.Namespace) -> int:
         files[f"{stem}.sigma.png"] = colorize(rel, 0.0, 2.0, "1-sigma error (% of depth)")
     write_together(out.parent, files)
     a, lens = result.ambiguity, result.lens_fit
-    fitted = f", lens corner {lens.corner_px:+.2f} +- {lens.corner_sigma_px:.2f} px" if lens else ""
+    fitted = ""
+    if lens is not None:
+        taken = "" if lens.significant else ", not taken"
+        fitted = f", lens corner {lens.corner_px:+.2f} +- {lens.corner_sigma_px:.2f} px{taken}"
     print(
         f"wrote {out} ({left.shape[1]}x{left.shape[0]}, "
         f"density {100 * float(np.isfinite(result.depth).mean()):.1f} %, "

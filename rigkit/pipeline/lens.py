@@ -67,9 +67,10 @@ def smooth_map(
 ) -> tuple[np.ndarray, np.ndarray]:
     """A smooth map of pixels, ``fn``: (N, 2) float64 (u, v) -> (N, 2), at every pixel of
     columns ``cols[0]:cols[1]`` and rows ``rows[0]:rows[1]``: (u, v), each (rows, cols)
-    float64. Exact at every ``GRID_STEP``-th pixel and bilinear in between, in float64
-    (lens distortion and a near-affine homography bend by < 0.002 px within a cell,
-    even a lens that moves the corner by ~80 px). Far cheaper than ``fn`` at every pixel.
+    float64. Exact at every ``GRID_STEP``-th pixel and bilinear in between, in float64:
+    lens distortion and near-affine homographies bend little within a cell (0.004 px
+    at most, measured for lensfun's P1000 profile, which moves the corner by 77 px).
+    Far cheaper than ``fn`` at every pixel.
     """
     (c0, c1), (r0, r1) = cols, rows
     gu = np.arange(c0, c1 + GRID_STEP, GRID_STEP, dtype=np.float64)

@@ -3,7 +3,7 @@
 lensfun profiles (ptlens, poly3, poly5 models, normalised in Hugin's convention, with
 crop-factor and aspect corrections) are not OpenCV's radial model about the centre with
 the focal length as unit. Rather than re-deriving lensfun's normalisation, this asks
-lensfun itself for the distorted position of points along the image diagonal (its
+lensfun itself for the distorted position of points from the centre to the corner (its
 ``Modifier``, exactly as it corrects an image) and fits ``k1, k2, k3`` to that map.
 
 lensfun keeps the scale of its corrected image at a reference radius, so its centre is
@@ -29,9 +29,9 @@ class LensfunProfile:
     """A lensfun profile converted: ``distortion`` OpenCV ``k1, k2, p1, p2, k3``
     (normalised coordinates about the image centre, focal length ``focal_px``);
     ``centre_scale`` lensfun's radial scale at the centre (dropped, see the module);
-    ``fit_error_px`` the largest difference along the diagonal between lensfun's map and
-    the converted model; ``camera``/``lens`` as lensfun names them; ``focal_mm`` the
-    real focal length the profile was interpolated at."""
+    ``fit_error_px`` the largest radial difference (radii 0 to the corner) between
+    lensfun's map and the converted model; ``camera``/``lens`` as lensfun names them;
+    ``focal_mm`` the real focal length the profile was interpolated at."""
 
     distortion: Distortion
     centre_scale: float
