@@ -98,18 +98,28 @@ def _residuals(p, rect, xr, d, pb, c_lr, c_lb):
     return (proj - pb).ravel()
 
 
-def _initial(m: Matches, rect: Rectification, xr, d, c_lr: float, c_lb: float) -> np.ndarray:
+def back_view_start(
+    m: Matches, f: float, centre: np.ndarray, c_lb: float
+) -> tuple[float, np.ndarray]:
+    """From the left/back coarse affine map ``m.affine``: the range (m) its
+    magnification implies (PipelineError where it shows none) and the back camera's
+    rotation vector (3,) (rad, left -> back, small angles) that its turn and its shift
+    of the image ``centre`` (px) imply for focal length ``f`` (px)."""
     A = m.affine[:, :2]
     s = float(np.sqrt(abs(np.linalg.det(A))))
     z0 = check_magnification(s, c_lb)
+    turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
+    du, dv = A @ centre + m.affine[:, 2] - s * centre
+    return z0, np.array([np.arctan(dv / f), -np.arctan(du / f), -turn])
+
+
+def _initial(m: Matches, rect: Rectification, xr, d, c_lr: float, c_lb: float) -> np.ndarray:
+    f = rect.K[0, 0]
+    z0, rotvec = back_view_start(m, f, np.array([rect.K[0, 2], rect.K[1, 2]]), c_lb)
     a, b = rectified_rays(rect, xr[:, 0], d)
     # triangulate_z: z = c_lr / (a - tan(atan(b) + beta)); solve for z = z0.
     beta0 = float(np.median(np.arctan(a - c_lr / z0) - np.arctan(b)))
-    f = rect.K[0, 0]
-    turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
-    centre = np.array([rect.K[0, 2], rect.K[1, 2]])
-    du, dv = A @ centre + m.affine[:, 2] - s * centre
-    return np.array([beta0, np.arctan(dv / f), -np.arctan(du / f), -turn, 0.0, 0.0])
+    return np.concatenate([[beta0], rotvec, [0.0, 0.0]])
 
 
 def remove_ambiguity(

@@ -33,7 +33,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rigkit.geometry import Distortion, distort, rotvec_to_matrix, undistort
-from rigkit.pipeline.checks import check_magnification
+from rigkit.pipeline.ambiguity import back_view_start
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification
@@ -187,15 +187,11 @@ class _Problem:
         return r.ravel()
 
 
-def _initial(problem: _Problem, rect: Rectification, m_lb: Matches) -> np.ndarray:
-    """Start: the rectification's right rotation and baseline angle, and the back
-    view's rotation from its coarse affine map (as :mod:`rigkit.pipeline.ambiguity`)."""
-    f = problem.lens.focal_px
-    A = m_lb.affine[:, :2]
-    s = float(np.sqrt(abs(np.linalg.det(A))))
-    turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
-    centre = problem.lens.centre
-    du, dv = A @ centre + m_lb.affine[:, 2] - s * centre
+def _initial(
+    problem: _Problem, rect: Rectification, back_rotvec: np.ndarray
+) -> np.ndarray:
+    """Start: the rectification's right rotation and baseline angle, the back view's
+    rotation from its coarse affine map (:func:`~rigkit.pipeline.ambiguity.back_view_start`)."""
     baseline = rect.R_rect.T @ np.array([1.0, 0.0, 0.0])
     rv, _ = cv2.Rodrigues(rect.R_lr.T)
     return np.concatenate(
@@ -203,7 +199,8 @@ def _initial(problem: _Problem, rect: Rectification, m_lb: Matches) -> np.ndarra
             np.zeros(problem.n_terms),
             [np.arctan2(baseline[1], baseline[0])],
             rv.ravel(),
-            [np.arctan(dv / f), -np.arctan(du / f), -turn, 0.0, 0.0],
+            back_rotvec,
+            [0.0, 0.0],
         ]
     )
 
@@ -215,7 +212,7 @@ def fit_distortion(
     lens: Lens,
     baseline_lr_m: float,
     baseline_lb_m: float,
-    n_terms: int = 2,
+    n_terms: int = 1,
 ) -> LensFit:
     """Refine ``lens``'s radial terms (``n_terms``: 1 = k1, 2 = k1 and k2) from the
     left/right and left/back matches (recorded px). ``rect`` is a rectification of
@@ -230,10 +227,9 @@ def fit_distortion(
                        float("inf"), corner, 0.0, len(pl), float("nan"))
     keep = np.unique(np.linspace(0, len(pl) - 1, min(len(pl), MAX_TRACKS)).astype(int))
     tracks = (pl[keep], pr[keep], pb[keep])
-    mag = float(np.sqrt(abs(np.linalg.det(m_lb.affine[:, :2]))))
-    z0 = check_magnification(mag, baseline_lb_m)
+    z0, back_rotvec = back_view_start(m_lb, lens.focal_px, lens.centre, baseline_lb_m)
     problem = _Problem(lens, tracks, baseline_lr_m, baseline_lb_m, n_terms, 1.0 / z0)
-    p0 = _initial(problem, rect, m_lb)
+    p0 = _initial(problem, rect, back_rotvec)
     scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
     opts = dict(x_scale=scales, diff_step=1e-6, method="trf")
     fit = least_squares(problem.residuals, p0, **opts)
