@@ -13,6 +13,17 @@ rotation, same focal length - must then see it where the match says. ``beta``, t
 back rotation and the offsets are fitted jointly by robust least squares. The depth
 scale enters through the back view's magnification; the rotation enters through its
 projective pattern, so the two do not trade off.
+
+Two things the fit cannot see set the offset's standard error besides the matches'
+noise. Heat shimmer moves whole patches of matches together, so a spatial jackknife
+measures it. The views' principal points are taken at the image centre; a back view
+whose principal point sits elsewhere than the left one's is not a rotation of it
+(they differ by a gradient of scale ~0.05 px across the frame, the size of the depth
+signal), and with ~25 px between them the offset moves by up to ~0.8 px. Their
+uncertainty is added as a *consider* term (Schmidt's consider covariance, as in orbit
+determination): the offset's sensitivity to a shift of the back principal point, times
+its prior spread. Estimating the shift instead was tried: with clean matches it is
+recovered, but a single frame's shimmer leaves it uncertain by more than its prior.
 """
 
 from __future__ import annotations
@@ -42,10 +53,12 @@ class Ambiguity:
 
     ``beta`` (rad): yaw correction of the right camera; ``offset_px`` ~ ``f * beta``,
     the paper's disparity offset q at the image centre; ``offset_sigma_px``: its
-    standard error (the larger of the least-squares one and a spatial jackknife's, which
-    also sees errors shared by neighbouring matches, such as heat shimmer; where the
-    lens was fitted from the views, :func:`~rigkit.pipeline.estimate_depth` adds the
-    part its uncertainty carries, :attr:`LensFit.offset_sigma_px`);
+    standard error: the larger of the least-squares one and a spatial jackknife's
+    (which also sees errors shared by neighbouring matches, such as heat shimmer),
+    combined with ``principal_point_sigma_px``, the part the principal points'
+    uncertainty carries (where the lens was fitted from the views,
+    :func:`~rigkit.pipeline.estimate_depth` adds the part its uncertainty carries,
+    :attr:`LensFit.offset_sigma_px`);
     ``back_rotvec`` (3,) left->back rotation (rad); ``back_offset_m``:
     the back camera's fitted (x right, y down) offset from the left optical axis;
     ``matches_used``/``inliers``: left/back matches with a disparity / within 1 px;
@@ -60,6 +73,7 @@ class Ambiguity:
     matches_used: int
     inliers: int
     rms_px: float
+    principal_point_sigma_px: float = 0.0
 
 
 def _sample_disparity(
@@ -160,26 +174,54 @@ def remove_ambiguity(
             f"left and right look swapped: the back camera fits {side:+.2f} m to the side "
             f"of the given left camera (expected behind it, C_lr = {baseline_lr_m} m)"
         )
-    res = fit.fun
-    dof = max(res.size - fit.x.size, 1)
-    sigma2 = float(res @ res) / dof
-    try:
-        cov = np.linalg.inv(fit.jac.T @ fit.jac) * sigma2
-        beta_sigma = float(np.sqrt(cov[0, 0]))
-    except np.linalg.LinAlgError:
-        beta_sigma = float("inf")
-    beta_sigma = max(beta_sigma, jack_sigma)
     f = rect.K[0, 0]
+    noise_sigma = f * max(_least_squares_beta_sigma(fit), jack_sigma)
+    pp_sigma = f * _principal_point_beta_sigma(fit, settings.principal_point_sigma * _width(rect))
     return Ambiguity(
         beta=float(fit.x[0]),
         offset_px=float(f * np.tan(fit.x[0])),
-        offset_sigma_px=f * beta_sigma,
+        offset_sigma_px=float(np.hypot(noise_sigma, pp_sigma)),
+        principal_point_sigma_px=pp_sigma,
         back_rotvec=fit.x[1:4].copy(),
         back_offset_m=(float(fit.x[4]), float(fit.x[5])),
         matches_used=int(ok.sum()),
         inliers=int(inl.sum()),
         rms_px=_rms(fit.fun),
     )
+
+
+def _width(rect: Rectification) -> float:
+    """Image width (px) of the views: the assumed principal point is its centre."""
+    return 2 * float(rect.K[0, 2]) + 1
+
+
+def _least_squares_beta_sigma(fit) -> float:
+    """Standard error of ``beta`` (rad) from the fit's covariance, every residual
+    taken as independent."""
+    res = fit.fun
+    sigma2 = float(res @ res) / max(res.size - fit.x.size, 1)
+    try:
+        return float(np.sqrt(np.linalg.inv(fit.jac.T @ fit.jac)[0, 0] * sigma2))
+    except np.linalg.LinAlgError:
+        return float("inf")
+
+
+def _principal_point_beta_sigma(fit, camera_sigma_px: float) -> float:
+    """Consider term (rad): the spread of ``beta`` that an unknown shift between the
+    back and the left principal points carries, each camera's being ``camera_sigma_px``
+    (one standard deviation per axis) from the image centre. A shift ``delta`` moves
+    every predicted back position by ``delta``; to first order the fit then moves by
+    ``-(J^T J)^-1 J^T G delta`` with ``G`` stacking one 2x2 identity per match."""
+    if camera_sigma_px == 0:
+        return 0.0
+    J = fit.jac
+    G = np.zeros((J.shape[0], 2))
+    G[0::2, 0] = G[1::2, 1] = 1.0
+    try:
+        sensitivity = np.linalg.solve(J.T @ J, J.T @ G)[0]  # rad per px of shift
+    except np.linalg.LinAlgError:
+        return float("inf")
+    return float(np.linalg.norm(sensitivity) * np.sqrt(2) * camera_sigma_px)
 
 
 def _jackknife_beta_sigma(

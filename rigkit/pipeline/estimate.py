@@ -88,6 +88,7 @@ class DepthResult:
             "lens_fit": self.lens_fit.as_dict() if self.lens_fit else None,
             "disparity_offset_px": a.offset_px,
             "disparity_offset_sigma_px": a.offset_sigma_px,
+            "disparity_offset_sigma_principal_point_px": a.principal_point_sigma_px,
             "right_yaw_correction_rad": a.beta,
             "back_rotation_rotvec_rad": [float(x) for x in a.back_rotvec],
             "back_offset_m": list(a.back_offset_m),

@@ -27,7 +27,11 @@ class PipelineSettings:
     pixel has no surface to match (sky, blank walls, clipped highlights); ``texture_window_px``
     the window (stereo px) that contrast is measured over. Ambiguity removal:
     ``edge_window_px`` matches this close (stereo px) to a depth edge are not used;
-    ``jackknife_blocks`` spatial blocks per image side for the offset's standard error.
+    ``jackknife_blocks`` spatial blocks per image side for the offset's standard error;
+    ``principal_point_sigma`` how far (one standard deviation, as a fraction of the
+    image width) each view's principal point may sit from the image centre, which the
+    pipeline assumes: its effect on the offset is added to the offset's standard error
+    (0: the views share one principal point, e.g. one camera moved between positions).
     Uncertainty: ``stereo_noise_px`` and ``filled_noise_px`` the disparity error (px at
     the stereo resolution) of a matched and of a filled pixel.
     """
@@ -43,6 +47,7 @@ class PipelineSettings:
     texture_window_px: int = 9
     edge_window_px: int = 7
     jackknife_blocks: int = 4
+    principal_point_sigma: float = 0.005
     stereo_noise_px: float = 0.25
     filled_noise_px: float = 2.0
 
