@@ -43,6 +43,7 @@ MAX_TRACKS = 1500  # enough for two global terms; the cost grows with the tracks
 LOSS_SCALE_PX = 0.3  # residual where the robust loss starts to discount a track
 SIGNIFICANCE = 2.0  # the fit replaces the given lens only this many sigma away from it
 MAX_DEPTH_STEPS = 8
+INLIER_PX = 1.0  # tracks within this of the fit count in the principal-point term
 DEPTH_TOL_PX = 1e-6  # far below what the outer finite differences resolve (~1e-3 px)
 
 
@@ -213,12 +214,20 @@ def fit_distortion(
     baseline_lr_m: float,
     baseline_lb_m: float,
     n_terms: int = 1,
+    principal_point_sigma_px: float = 0.0,
 ) -> LensFit:
     """Refine ``lens``'s radial terms (``n_terms``: 1 = k1, 2 = k1 and k2) from the
     left/right and left/back matches (recorded px). ``rect`` is a rectification of
     the pair under ``lens``, used only as the starting rotation. With fewer than
     ``MIN_TRACKS`` corners seen in all three views the given lens is kept (``tracks``
-    says how many; ``corner_sigma_px`` is infinite)."""
+    says how many; ``corner_sigma_px`` is infinite).
+
+    ``principal_point_sigma_px``: how far (px, one standard deviation per axis) each
+    view's principal point may sit from the image centre the fit assumes. A right or
+    back view whose principal point differs from the left one's bends the tracks
+    like a lens would (the fit's bend was 1-16 % off with +-30 px between views); the
+    standard errors include that, as a consider term (see
+    :mod:`rigkit.pipeline.ambiguity`), so the fit is not taken on its strength."""
     pl, pr, pb = three_view_tracks(m_lr, m_lb)
     if len(pl) < MIN_TRACKS:
         # Too little seen by all three views to tell: keep the given lens, and say so.
@@ -235,7 +244,7 @@ def fit_distortion(
     fit = least_squares(problem.residuals, p0, **opts)
     fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
     fitted = problem.distortion(fit.x)
-    corner_sigma, offset_sigma = _lens_sigmas(fit, problem, lens)
+    corner_sigma, offset_sigma = _lens_sigmas(fit, problem, lens, principal_point_sigma_px)
     err = np.linalg.norm(problem.residuals(fit.x).reshape(-1, 2), axis=1)
     corner = corner_shift_px(Lens(lens.focal_px, lens.size, fitted))
     start_corner = corner_shift_px(lens)
@@ -256,25 +265,59 @@ def fit_distortion(
     )
 
 
-def _lens_sigmas(fit, problem: _Problem, lens: Lens) -> tuple[float, float]:
-    """Standard errors from the Gauss-Newton covariance of the outer parameters (the
-    depths are already eliminated: variable projection): of the corner shift (px), and
-    of the part of the right camera's yaw that the radial terms' uncertainty carries,
-    as a disparity offset (px). The later stages take the lens as exact; this second
-    figure is what that hides from the offset's standard error."""
+def _lens_sigmas(
+    fit, problem: _Problem, lens: Lens, principal_point_sigma_px: float
+) -> tuple[float, float]:
+    """Standard errors of the corner shift (px) and of the disparity offset (px) that
+    the radial terms' uncertainty carries: the later stages take the lens as exact,
+    and this second figure is what that hides from the offset's standard error.
+
+    The terms' covariance is the Gauss-Newton one of the outer parameters (the depths
+    are already eliminated: variable projection) plus the principal points' consider
+    term. How the right camera's yaw follows the terms is their regression in the
+    noise covariance (the yaw is the y component of its rotation vector): a right
+    principal point that moves the yaw directly is the back view's to settle, not the
+    lens's."""
     n = problem.n_terms
     J, r = fit.jac, fit.fun
     dof = max(r.size - J.shape[1] - len(problem.pl), 1)
     try:
-        cov = np.linalg.inv(J.T @ J) * float(r @ r) / dof
+        noise = np.linalg.inv(J.T @ J) * float(r @ r) / dof
+        terms = noise[:n, :n] + _principal_point_covariance(
+            problem, fit.x, principal_point_sigma_px
+        )[:n, :n]
+        yaw_per_term = np.linalg.solve(noise[:n, :n], noise[:n, n + 2])
     except np.linalg.LinAlgError:
         return float("inf"), float("inf")
     # Each term is the fraction of the corner radius it moves the corner by.
     grad = np.full(n, corner_radius(lens) * lens.focal_px)
-    corner = float(np.sqrt(max(grad @ cov[:n, :n] @ grad, 0.0)))
-    # The yaw is the y component of the right camera's rotation vector; what the terms
-    # explain of its variance is c^T S^-1 c, c its covariance with them.
-    yaw = n + 2
-    c = cov[:n, yaw]
-    explained = float(c @ np.linalg.solve(cov[:n, :n], c))
-    return corner, lens.focal_px * float(np.sqrt(max(explained, 0.0)))
+    corner = float(np.sqrt(max(grad @ terms @ grad, 0.0)))
+    offset = float(np.sqrt(max(yaw_per_term @ terms @ yaw_per_term, 0.0)))
+    return corner, lens.focal_px * offset
+
+
+def _principal_point_covariance(
+    problem: _Problem, p: np.ndarray, camera_sigma_px: float
+) -> np.ndarray:
+    """Consider covariance of the outer parameters: shifts of the right and of the back
+    principal point relative to the left one's (each camera ``camera_sigma_px`` per
+    axis from the centre, so sqrt(2) times that between two) move every predicted
+    position in that view by the shift; to first order the fit moves by
+    ``(J^T J)^-1 J^T G`` per px. J is the plain (not loss-weighted) Jacobian on the
+    tracks within ``INLIER_PX``, by forward differences like the fit's own."""
+    if camera_sigma_px == 0:
+        return np.zeros((p.size, p.size))
+    r0 = problem.residuals(p)
+    inlier = np.repeat(np.abs(r0).reshape(-1, 4).max(axis=1) < INLIER_PX, 4)
+    J = np.empty((r0.size, p.size))
+    for k in range(p.size):
+        step = np.zeros(p.size)
+        step[k] = 1e-6 * max(1.0, abs(p[k]))
+        J[:, k] = (problem.residuals(p + step) - r0) / step[k]
+    problem.residuals(p)  # leave the depths at the solution
+    J = J[inlier]
+    G = np.zeros((J.shape[0], 4))  # rows per track: right u, v, back u, v
+    for k in range(4):
+        G[k::4, k] = 1.0
+    S = np.linalg.solve(J.T @ J, J.T @ G)
+    return S @ S.T * 2 * camera_sigma_px**2

@@ -245,7 +245,8 @@ def _lens(
         return given, None
     start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
     fit = fit_distortion(
-        raw_lr, raw_lb, start, given, rig.baseline_lr_m, rig.baseline_lb_m, s.distortion_terms
+        raw_lr, raw_lb, start, given, rig.baseline_lr_m, rig.baseline_lb_m, s.distortion_terms,
+        s.principal_point_sigma * size[0],
     )
     return Lens(rig.focal_px, size, fit.distortion), fit
 

@@ -21,14 +21,21 @@ def _affine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(np.c_[a, np.ones(len(a))], b, rcond=None)[0].T
 
 
-def _tracks(k1: float, noise_px: float, rng: np.random.Generator, n: int = 1200):
+def _tracks(k1: float, noise_px: float, rng: np.random.Generator, n: int = 1200,
+            pp: dict[str, tuple[float, float]] | None = None):
     """Left/right and left/back matches of points 250-350 m away, seen by one lens at
     the three positions (right 2 m to the side, back 2 m behind and 0.3 m up, each
-    turned by about a degree); Gaussian noise of ``noise_px`` on the other views."""
-    K = intrinsics(F, (W - 1) / 2, (H - 1) / 2)
+    turned by about a degree); Gaussian noise of ``noise_px`` on the other views;
+    ``pp``: a view's principal point offset from the image centre (px)."""
+    pp = pp or {}
+
+    def K(name: str) -> np.ndarray:
+        dx, dy = pp.get(name, (0.0, 0.0))
+        return intrinsics(F, (W - 1) / 2 + dx, (H - 1) / 2 + dy)
+
     lens = (k1, 0.0, 0.0, 0.0, 0.0)
     cams = {
-        name: Camera(K=K, R=euler_to_matrix(*e).T, C=np.array(c), width=W, height=H,
+        name: Camera(K=K(name), R=euler_to_matrix(*e).T, C=np.array(c), width=W, height=H,
                      distortion=lens)
         for name, e, c in (
             ("left", (0, 0, 0), (0.0, 0.0, 0.0)),
@@ -52,9 +59,10 @@ def _tracks(k1: float, noise_px: float, rng: np.random.Generator, n: int = 1200)
     )
 
 
-def _fit(m_lr: Matches, m_lb: Matches, start=(0.0,) * 5):
+def _fit(m_lr: Matches, m_lb: Matches, start=(0.0,) * 5, pp_sigma_px: float = 0.0):
     lens = Lens(F, (W, H), start)
-    return fit_distortion(m_lr, m_lb, pseudo_rectify(m_lr, F, (W, H)), lens, 2.0, 2.0, 1)
+    rect = pseudo_rectify(m_lr, F, (W, H))
+    return fit_distortion(m_lr, m_lb, rect, lens, 2.0, 2.0, 1, pp_sigma_px)
 
 
 def _k1_for_corner(fraction: float) -> float:
@@ -97,3 +105,18 @@ def test_too_few_three_view_tracks_keep_the_given_lens() -> None:
     assert fit.tracks == 20 and not fit.significant
     assert fit.distortion == fit.start == start and fit.corner_sigma_px == np.inf
     assert fit.as_dict()["tracks"] == 20 and fit.as_dict()["corner_shift_sigma_px"] is None
+
+
+def test_principal_points_apart_are_in_the_standard_error() -> None:
+    # Right and back principal points ~15 px from the left one's bend the tracks like
+    # a lens: the fit is off by many of its noise sigmas, and within two once the
+    # principal points' spread (10 px per camera) is considered.
+    k1 = _k1_for_corner(0.003)
+    shifted = {"right": (12.0, -8.0), "back": (-10.0, 14.0)}
+    tracks = _tracks(k1, 0.05, np.random.default_rng(5), pp=shifted)
+    true = corner_shift_px(Lens(F, (W, H), (k1, 0, 0, 0, 0)))
+    plain, honest = _fit(*tracks), _fit(*tracks, pp_sigma_px=10.0)
+    assert honest.corner_px == plain.corner_px  # the estimate itself is unchanged
+    assert abs(plain.corner_px - true) > 3 * plain.corner_sigma_px
+    assert abs(honest.corner_px - true) < 2 * honest.corner_sigma_px
+    assert honest.offset_sigma_px >= plain.offset_sigma_px
