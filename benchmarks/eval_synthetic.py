@@ -59,12 +59,17 @@ def offset_error_px(depth: np.ndarray, truth, rig: RigGeometry) -> float:
     return float(np.median(fc / depth[judged] - fc / z_true))
 
 
+def true_corner_px(truth) -> float:
+    """How far the scene's lens moves the image corner (px, radially)."""
+    size = (truth.cameras["left"].width, truth.cameras["left"].height)
+    return corner_shift_px(Lens(truth.focal_px, size, truth.cameras["left"].distortion))
+
+
 def lens_note(res, truth) -> str:
     """The fitted lens against the scene's: how far each moves the image corner."""
     if res.lens_fit is None:
         return ""
-    size = (truth.cameras["left"].width, truth.cameras["left"].height)
-    true = corner_shift_px(Lens(truth.focal_px, size, truth.cameras["left"].distortion))
+    true = true_corner_px(truth)
     fit = res.lens_fit
     kept = "" if fit.significant else ", kept the start"
     fitted = f"{fit.corner_px:+.2f} +- {fit.corner_sigma_px:.2f} px"
@@ -99,7 +104,7 @@ def main() -> int:
     args = ap.parse_args()
     params = scene_params(args)
     settings = PipelineSettings(distortion_terms=0) if args.fixed_lens else PipelineSettings()
-    coverage = []
+    coverage, lens_coverage = [], []
     scenes, depth_dir = args.work / "scenes", args.work / "depth"
     depth_dir.mkdir(parents=True, exist_ok=True)
     dirs = []
@@ -126,6 +131,9 @@ def main() -> int:
         np.save(depth_dir / f"{d.name}.npy", res.depth)
         err, sigma = offset_error_px(res.depth, truth, rig), res.ambiguity.offset_sigma_px
         coverage.append(abs(err) <= 2 * sigma)
+        if res.lens_fit is not None:
+            miss = abs(res.lens_fit.corner_px - true_corner_px(truth))
+            lens_coverage.append(miss <= 2 * res.lens_fit.corner_sigma_px)
         print(
             f"seed {seed}: offset {res.ambiguity.offset_px:.2f} +- {sigma:.2f} px, "
             f"error {err:+.2f} px ({err / sigma:+.1f} sigma), {elapsed:.1f} s"
@@ -136,6 +144,9 @@ def main() -> int:
     print(format_table(rows))
     if coverage:
         print(f"offset within 2 sigma: {sum(coverage)} of {len(coverage)} scenes")
+    if lens_coverage:
+        n = len(lens_coverage)
+        print(f"fitted lens corner within 2 sigma: {sum(lens_coverage)} of {n} scenes")
     write_csv(rows, args.work / "eval.csv")
     return 1 if any(m.failed for m in rows) else 0
 

@@ -117,6 +117,9 @@ def test_principal_points_apart_are_in_the_standard_error() -> None:
     true = corner_shift_px(Lens(F, (W, H), (k1, 0, 0, 0, 0)))
     plain, honest = _fit(*tracks), _fit(*tracks, pp_sigma_px=10.0)
     assert honest.corner_px == plain.corner_px  # the estimate itself is unchanged
+    # ... and so is the decision to take it, which weighs the noise alone
+    assert honest.corner_noise_sigma_px == pytest.approx(plain.corner_sigma_px)
+    assert honest.significant == plain.significant
     assert abs(plain.corner_px - true) > 3 * plain.corner_sigma_px
     assert abs(honest.corner_px - true) < 2 * honest.corner_sigma_px
     assert honest.offset_sigma_px >= plain.offset_sigma_px
