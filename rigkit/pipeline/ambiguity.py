@@ -206,19 +206,28 @@ def _least_squares_beta_sigma(fit) -> float:
         return float("inf")
 
 
+def shift_sensitivity(J: np.ndarray, per_point: int) -> np.ndarray:
+    """How a least-squares fit moves when a coordinate is shifted by 1 px at every
+    point: (P, per_point), the parameters' change per px of a shift of the ``k``-th
+    residual of each point (rows ``k::per_point`` of the (M, P) Jacobian ``J``, M a
+    multiple of ``per_point``). To first order a shift ``delta`` moves the fit by
+    ``-(J^T J)^-1 J^T G delta``, ``G`` stacking one identity per point; the sign does
+    not matter to a consider covariance. Raises LinAlgError where J^T J is singular."""
+    G = np.zeros((J.shape[0], per_point))
+    for k in range(per_point):
+        G[k::per_point, k] = 1.0
+    return np.linalg.solve(J.T @ J, J.T @ G)
+
+
 def _principal_point_beta_sigma(fit, camera_sigma_px: float) -> float:
     """Consider term (rad): the spread of ``beta`` that an unknown shift between the
     back and the left principal points carries, each camera's being ``camera_sigma_px``
-    (one standard deviation per axis) from the image centre. A shift ``delta`` moves
-    every predicted back position by ``delta``; to first order the fit then moves by
-    ``-(J^T J)^-1 J^T G delta`` with ``G`` stacking one 2x2 identity per match."""
+    (one standard deviation per axis) from the image centre: a shift moves every
+    predicted back position (u, v) by itself (:func:`shift_sensitivity`)."""
     if camera_sigma_px == 0:
         return 0.0
-    J = fit.jac
-    G = np.zeros((J.shape[0], 2))
-    G[0::2, 0] = G[1::2, 1] = 1.0
     try:
-        sensitivity = np.linalg.solve(J.T @ J, J.T @ G)[0]  # rad per px of shift
+        sensitivity = shift_sensitivity(fit.jac, 2)[0]  # rad per px of shift
     except np.linalg.LinAlgError:
         return float("inf")
     return float(np.linalg.norm(sensitivity) * np.sqrt(2) * camera_sigma_px)

@@ -33,7 +33,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rigkit.geometry import Distortion, distort, rotvec_to_matrix, undistort
-from rigkit.pipeline.ambiguity import back_view_start
+from rigkit.pipeline.ambiguity import back_view_start, shift_sensitivity
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification
@@ -315,9 +315,9 @@ def _principal_point_covariance(
     """Consider covariance of the outer parameters: shifts of the right and of the back
     principal point relative to the left one's (each camera ``camera_sigma_px`` per
     axis from the centre, so sqrt(2) times that between two) move every predicted
-    position in that view by the shift; to first order the fit moves by
-    ``(J^T J)^-1 J^T G`` per px. J is the plain (not loss-weighted) Jacobian on the
-    tracks within ``INLIER_PX``, by forward differences like the fit's own."""
+    position in that view by the shift (:func:`~rigkit.pipeline.ambiguity.shift_sensitivity`).
+    J is the plain (not loss-weighted) Jacobian on the tracks within ``INLIER_PX``, by
+    forward differences like the fit's own."""
     if camera_sigma_px == 0:
         return np.zeros((p.size, p.size))
     r0 = problem.residuals(p)
@@ -328,9 +328,5 @@ def _principal_point_covariance(
         step[k] = 1e-6 * max(1.0, abs(p[k]))
         J[:, k] = (problem.residuals(p + step) - r0) / step[k]
     problem.residuals(p)  # leave the depths at the solution
-    J = J[inlier]
-    G = np.zeros((J.shape[0], 4))  # rows per track: right u, v, back u, v
-    for k in range(4):
-        G[k::4, k] = 1.0
-    S = np.linalg.solve(J.T @ J, J.T @ G)
+    S = shift_sensitivity(J[inlier], 4)  # rows per track: right u, v, back u, v
     return S @ S.T * 2 * camera_sigma_px**2

@@ -30,8 +30,9 @@ class PipelineSettings:
     ``jackknife_blocks`` spatial blocks per image side for the offset's standard error;
     ``principal_point_sigma`` how far (one standard deviation, as a fraction of the
     image width) each view's principal point may sit from the image centre, which the
-    pipeline assumes: its effect on the offset is added to the offset's standard error
-    (0: the views share one principal point, e.g. one camera moved between positions).
+    pipeline assumes: its effect is added to the standard errors of the offset and of
+    the fitted lens (0: the views share one principal point, e.g. one camera moved
+    between positions).
     Uncertainty: ``stereo_noise_px`` and ``filled_noise_px`` the disparity error (px at
     the stereo resolution) of a matched and of a filled pixel.
     """
