@@ -38,7 +38,8 @@ def triangulate_z(
     left column ``u`` with rectified ``disparity``, for a right-camera yaw correction
     ``beta`` (rad). Non-positive or infinite results (behind the rig) become NaN."""
     a, b = rectified_rays(rect, u, disparity)
-    denom = a - np.tan(np.arctan(b) + beta)
+    t = np.tan(beta)
+    denom = a - (b + t) / (1.0 - b * t)  # the right ray turned by beta: tan(atan(b) + beta)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = baseline_m / denom
     return np.where(z > 0, z, np.nan)
@@ -52,54 +53,44 @@ def left_grid(
     (float32, for cv2.remap) and ``uf`` their full-resolution rectified column
     (float64). ``lens`` maps recorded to ideal pixels first (None: pinhole)."""
     H, W = shape
-    M = scaling(scale) @ rect.H_left
-    Hl = rect.H_left
+    h = rect.H_left
+    S = scaling(scale)  # diagonal scale and shift: resized = S @ full resolution
     lens = lens or Lens(float(rect.K[0, 0]), (W, H))
     for r0 in range(0, H, CHUNK_ROWS):
-        uu, vv = lens.ideal_rows(r0, min(r0 + CHUNK_ROWS, H))
-        q = M[:, 0, None, None] * uu + M[:, 1, None, None] * vv + M[:, 2, None, None]
-        xs, ys = (q[0] / q[2]).astype(np.float32), (q[1] / q[2]).astype(np.float32)
-        uf = (Hl[0, 0] * uu + Hl[0, 1] * vv + Hl[0, 2]) / (Hl[2, 0] * uu + Hl[2, 1] * vv + Hl[2, 2])
-        yield slice(r0, r0 + uu.shape[0]), xs, ys, uf
+        u, v = lens.ideal_rows(r0, min(r0 + CHUNK_ROWS, H))
+        w = 1.0 / (h[2, 0] * u + (h[2, 1] * v + h[2, 2]))
+        uf = (h[0, 0] * u + (h[0, 1] * v + h[0, 2])) * w
+        vf = (h[1, 0] * u + (h[1, 1] * v + h[1, 2])) * w
+        xs = (S[0, 0] * uf + S[0, 2]).astype(np.float32)
+        ys = (S[1, 1] * vf + S[1, 2]).astype(np.float32)
+        yield slice(r0, r0 + uf.shape[0]), xs, ys, uf
 
 
-def depth_map(
+def to_left(
     disparity: np.ndarray,
-    disparity_scale: float,
+    masks: np.ndarray,
+    scale: float,
     rect: Rectification,
     beta: float,
     baseline_m: float,
     shape: tuple[int, int],
     lens: Lens | None = None,
-    grid: list[tuple] | None = None,
-) -> np.ndarray:
-    """Depth of every pixel of the original (recorded) left image (``grid``: the
-    :func:`left_grid` of the same arguments, when already computed).
+) -> tuple[np.ndarray, np.ndarray]:
+    """Depth of every pixel of the original (recorded) left image, and masks of the
+    rectified canvas carried to the same pixels, in one pass over :func:`left_grid`
+    (each chunk of the grid is used once and its memory reused for the next).
 
-    disparity: (h, w) float32, px of the ``disparity_scale``-resized rectified canvas,
-    ``x_left - x_right``, NaN = unknown. shape: (H, W) of the original left image.
-    Returns (H, W) float32, metres, z in the left camera frame, NaN where unknown.
+    disparity: (h, w) float32, px of the ``scale``-resized rectified canvas,
+    ``x_left - x_right``, NaN = unknown. masks: (h, w, c) bool on the same canvas,
+    c <= 4. shape: (H, W) of the original left image.
+    Returns depth: (H, W) float32, metres, z in the left camera frame, NaN where
+    unknown; and the masks: (H, W, c) bool, nearest neighbour, False outside the canvas.
     """
-    out = np.empty(shape, np.float32)
-    for rows, xs, ys, uf in grid or left_grid(rect, disparity_scale, shape, lens):
+    depth = np.empty(shape, np.float32)
+    out = np.empty(shape + masks.shape[2:], bool)
+    src = masks.astype(np.uint8)
+    for rows, xs, ys, uf in left_grid(rect, scale, shape, lens):
         d = cv2.remap(disparity, xs, ys, cv2.INTER_LINEAR, borderValue=np.nan)
-        out[rows] = triangulate_z(rect, uf, d / disparity_scale, beta, baseline_m)
-    return out
-
-
-def mask_to_left(
-    mask: np.ndarray,
-    scale: float,
-    rect: Rectification,
-    shape: tuple[int, int],
-    lens: Lens | None = None,
-    grid: list[tuple] | None = None,
-) -> np.ndarray:
-    """Resample bool masks of the ``scale``-resized rectified canvas to the original
-    left grid (nearest neighbour), all in one pass: ``mask`` (h, w) or (h, w, c) with
-    c <= 4. Returns (H, W) or (H, W, c) bool."""
-    out = np.zeros(shape + mask.shape[2:], bool)
-    src = mask.astype(np.uint8)
-    for rows, xs, ys, _ in grid or left_grid(rect, scale, shape, lens):
+        depth[rows] = triangulate_z(rect, uf, d / scale, beta, baseline_m)
         out[rows] = cv2.remap(src, xs, ys, cv2.INTER_NEAREST, borderValue=0) > 0
-    return out
+    return depth, out

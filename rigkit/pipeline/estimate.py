@@ -12,9 +12,9 @@ from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
 from rigkit.pipeline.checks import check_distinct, check_parallax
-from rigkit.pipeline.depth import depth_map, left_grid, mask_to_left
+from rigkit.pipeline.depth import to_left
 from rigkit.pipeline.distortion import LensFit, fit_distortion
-from rigkit.pipeline.features import Matches, match_views
+from rigkit.pipeline.features import Matches, match_to, prepare_left
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, footprints, pseudo_rectify, warp_pair
 from rigkit.pipeline.settings import PipelineSettings
@@ -162,8 +162,9 @@ def estimate_depth(
         report(stage, frac)
 
     size = (left.shape[1], left.shape[0])
-    raw_lr = match_views(left, right, "left/right", settings=s)
-    raw_lb = match_views(left, back, "left/back", settings=s)
+    ref = prepare_left(left, settings=s)  # once for both pairs
+    raw_lr = match_to(ref, right, "left/right", s)
+    raw_lb = match_to(ref, back, "left/back", s)
     check_distinct(left, right, back)  # after matching: a blank scene says so first
     lap("matching", 0.2)
     lens, lens_fit = _lens(raw_lr, raw_lb, rig, size, s)
@@ -194,10 +195,8 @@ def estimate_depth(
     # a hole with no surface in it (sky between two buildings) is no occlusion.
     dense = restrict_to_footprints(np.where(surface, dense, np.nan), left_fp, right_fp)
     holes &= np.isfinite(dense)
-    grid = list(left_grid(rect, scale, left.shape, lens))  # once, for depth and masks
-    depth = depth_map(dense, scale, rect, amb.beta, rig.baseline_lr_m, left.shape, grid=grid)
-    both = mask_to_left(np.dstack([holes, ~surface & left_fp]), scale, rect, left.shape,
-                        grid=grid)
+    depth, both = to_left(dense, np.dstack([holes, ~surface & left_fp]), scale, rect,
+                          amb.beta, rig.baseline_lr_m, left.shape, lens)
     filled, no_surface = both[..., 0], both[..., 1]
     sigma = _depth_sigma(depth, filled, rig, amb, s)
     lap("depth", 1.0)
@@ -261,7 +260,12 @@ def _ideal(m: Matches, lens: Lens) -> Matches:
 def _depth_sigma(
     depth: np.ndarray, filled: np.ndarray, rig: RigGeometry, amb: Ambiguity, s: PipelineSettings
 ) -> np.ndarray:
-    """First-order error: dz = z^2 / (f C_lr) * sqrt(dd_stereo^2 + dd_offset^2)."""
-    stereo = np.where(filled, s.filled_noise_px, s.stereo_noise_px) / s.stereo_scale
-    dd = np.hypot(stereo, amb.offset_sigma_px).astype(np.float32)
-    return depth.astype(np.float32) ** 2 * dd / np.float32(rig.focal_px * rig.baseline_lr_m)
+    """First-order error: dz = z^2 / (f C_lr) * sqrt(dd_stereo^2 + dd_offset^2).
+    dd takes one of two values (matched or filled); computed in float32 and in place,
+    since each fresh image-sized array costs time to map in."""
+    dd = np.hypot(np.array([s.stereo_noise_px, s.filled_noise_px]) / s.stereo_scale,
+                  amb.offset_sigma_px) / (rig.focal_px * rig.baseline_lr_m)
+    sigma = np.square(depth, dtype=np.float32)
+    np.multiply(sigma, np.float32(dd[0]), out=sigma, where=~filled)  # in place
+    np.multiply(sigma, np.float32(dd[1]), out=sigma, where=filled)
+    return sigma

@@ -8,6 +8,9 @@ Coarse-to-fine, so that it is fast at 16 MP and accurate to a few hundredths of 
 2. The other view is warped into the left frame by that affine, and corners of the
    left image are tracked into the warped view with pyramidal Lucas-Kanade at full
    resolution; a forward-backward check rejects unreliable tracks.
+
+The left image's share of both steps (its SIFT features, its corners) is computed once
+(:func:`prepare_left`) when it is matched against the right and the back view.
 """
 
 from __future__ import annotations
@@ -55,14 +58,42 @@ def _to_u8(img: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
-def _coarse_affine(
-    left: np.ndarray, other: np.ndarray, what: str, coarse_side: int
-) -> tuple[np.ndarray, int]:
-    scale = min(1.0, coarse_side / max(left.shape))
-    size = (round(left.shape[1] * scale), round(left.shape[0] * scale))
-    small = [_to_u8(cv2.resize(im, size, interpolation=cv2.INTER_AREA)) for im in (left, other)]
-    sift = cv2.SIFT_create(nfeatures=4000)  # type: ignore[attr-defined]
-    (k1, d1), (k2, d2) = (sift.detectAndCompute(im, None) for im in small)
+@dataclass(frozen=True)
+class Reference:
+    """The left image, prepared once for matching it against each other view (its SIFT
+    features and corners do not depend on the other view). ``image``: (H, W) float32;
+    ``u8``: the same as uint8; ``coarse_scale``: of the copy SIFT ran on, with its
+    ``keypoints`` and ``descriptors`` (None: no features); ``corners``: (N, 2) float32,
+    full-resolution px, the points tracked into the other view."""
+
+    image: np.ndarray
+    u8: np.ndarray
+    coarse_scale: float
+    keypoints: tuple
+    descriptors: np.ndarray | None
+    corners: np.ndarray
+
+
+def _sift(image: np.ndarray, scale: float) -> tuple[tuple, np.ndarray | None]:
+    size = (round(image.shape[1] * scale), round(image.shape[0] * scale))
+    small = _to_u8(cv2.resize(image, size, interpolation=cv2.INTER_AREA))
+    return cv2.SIFT_create(nfeatures=4000).detectAndCompute(small, None)  # type: ignore[attr-defined]
+
+
+def prepare_left(
+    left: np.ndarray, n_points: int | None = None, settings: PipelineSettings = DEFAULT
+) -> Reference:
+    """:class:`Reference` of the (H, W) float32 ``left`` image; ``n_points`` overrides
+    ``settings.n_points``."""
+    scale = min(1.0, settings.coarse_side_px / max(left.shape))
+    keypoints, descriptors = _sift(left, scale)
+    corners = _corners(left, n_points or settings.n_points).astype(np.float32)
+    return Reference(left, _to_u8(left), scale, keypoints, descriptors, corners)
+
+
+def _coarse_affine(ref: Reference, other: np.ndarray, what: str) -> tuple[np.ndarray, int]:
+    scale = ref.coarse_scale
+    (k1, d1), (k2, d2) = (ref.keypoints, ref.descriptors), _sift(other, scale)
     if d1 is None or d2 is None or len(k1) < MIN_COARSE_MATCHES or len(k2) < MIN_COARSE_MATCHES:
         found = min(len(k1), len(k2))
         raise PipelineError(f"{what}: only {found} features found (textureless or blank image?)")
@@ -100,28 +131,28 @@ def _corners(left: np.ndarray, n_points: int) -> np.ndarray:
     return pts.reshape(-1, 2) * 2 + 0.5
 
 
-def match_brightness(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """``image`` scaled by a smooth gain field so that its local mean brightness (over
-    ~5 % of the image side) is ``reference``'s. Exposure and vignetting differ between
-    frames; Lucas-Kanade assumes brightness constancy, and a brightness slope across its
-    window biases the shift it finds. Only the mean is matched: equalising local
-    contrast as well would follow the texture itself and distort it.
-    Both (H, W) float32, aligned; pixels outside ``image`` (0) are left 0.
+def brightness_gain(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """The smooth gain field that gives ``image`` the local mean brightness (over ~5 %
+    of the image side) of ``reference``. Exposure and vignetting differ between frames;
+    Lucas-Kanade assumes brightness constancy, and a brightness slope across its window
+    biases the shift it finds. Only the mean is matched: equalising local contrast as
+    well would follow the texture itself and distort it.
+    image, reference: (H, W) float32 grey levels >= 0, aligned; ``image`` is 0 outside
+    its footprint, which is left out of the means. Returns (H, W) float32, unitless.
     """
     # The mean over ~5 % of the side is smooth: compute it on a ~256 px copy.
     h, w = image.shape
     k = max(1.0, max(h, w) / 256)
     small = (max(1, round(w / k)), max(1, round(h / k)))
-    inside = (image > 0).astype(np.float32)
+    inside = cv2.threshold(image, 0, 1, cv2.THRESH_BINARY)[1]
 
     def low_pass(a: np.ndarray) -> np.ndarray:
         a = cv2.resize(a, small, interpolation=cv2.INTER_AREA)
         return cv2.GaussianBlur(a, (0, 0), 0.05 * max(small))
 
     wgt = low_pass(inside) + 1e-6
-    ratio = (low_pass(reference * inside) / wgt) / np.maximum(low_pass(image * inside) / wgt, 1e-3)
-    gain = cv2.resize(ratio.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
-    return (image * gain).astype(np.float32)
+    ratio = (low_pass(reference * inside) / wgt) / np.maximum(low_pass(image) / wgt, 1e-3)
+    return cv2.resize(ratio.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
 
 
 def match_views(
@@ -135,14 +166,26 @@ def match_views(
 
     ``what`` names the pair in error messages; ``n_points`` overrides
     ``settings.n_points``. Raises PipelineError when the views do not match
-    (textureless, unrelated, or too few reliable tracks).
+    (textureless, unrelated, or too few reliable tracks). To match one left image
+    against several views, :func:`prepare_left` it once and call :func:`match_to`.
     """
-    A, n_coarse = _coarse_affine(left, other, what, settings.coarse_side_px)
+    return match_to(prepare_left(left, n_points, settings), other, what, settings)
+
+
+def match_to(
+    ref: Reference, other: np.ndarray, what: str = "left/other",
+    settings: PipelineSettings = DEFAULT,
+) -> Matches:
+    """:func:`match_views` from a prepared left image, ``ref``."""
+    left = ref.image
+    A, n_coarse = _coarse_affine(ref, other, what)
     warped = cv2.warpAffine(
         other, A, (left.shape[1], left.shape[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
     )
-    l8, w8 = _to_u8(left), _to_u8(match_brightness(warped, left))
-    p0 = _corners(left, n_points or settings.n_points).astype(np.float32)
+    # Rounded and saturated to uint8 in the same pass as the gain (as _to_u8 would).
+    w8 = cv2.multiply(warped, brightness_gain(warped, left), dtype=cv2.CV_8U)
+    l8 = ref.u8
+    p0 = ref.corners
     p1, st1 = _track(l8, w8, p0)
     p0b, st2 = _track(w8, l8, p1)  # and back, to check each track
     h, w = left.shape

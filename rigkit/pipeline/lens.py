@@ -55,10 +55,13 @@ class Lens:
 
     def ideal_rows(self, r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
         """Ideal positions of the recorded pixels of rows ``r0:r1``, all columns: (u, v),
-        each (r1 - r0, W) float64 (see :func:`smooth_map`)."""
+        float64, broadcastable to (r1 - r0, W) (see :func:`smooth_map`). Without
+        distortion they are the pixel indices themselves, a (1, W) row of u and a
+        (r1 - r0, 1) column of v, so that callers do per-pixel work only where needed."""
         w = self.size[0]
         if self.identity:
-            return np.meshgrid(np.arange(w, dtype=np.float64), np.arange(r0, r1, dtype=np.float64))
+            u, v = np.arange(w, dtype=np.float64), np.arange(r0, r1, dtype=np.float64)
+            return u[None, :], v[:, None]
         return smooth_map(self.to_ideal, (0, w), (r0, r1))
 
 
@@ -76,16 +79,16 @@ def smooth_map(
     gu = np.arange(c0, c1 + GRID_STEP, GRID_STEP, dtype=np.float64)
     gv = np.arange(r0, r1 + GRID_STEP, GRID_STEP, dtype=np.float64)
     knots = np.stack(np.meshgrid(gu, gv), axis=-1)
-    shift = fn(knots.reshape(-1, 2)).reshape(knots.shape) - knots
-    u = np.arange(c0, c1, dtype=np.float64)
-    v = np.arange(r0, r1, dtype=np.float64)
-    iu, fu = np.divmod(u - c0, GRID_STEP)
-    iv, fv = np.divmod(v - r0, GRID_STEP)
-    iu, iv = iu.astype(int), iv.astype(int)
-    fu, fv = fu / GRID_STEP, fv[:, None] / GRID_STEP
+    mapped = fn(knots.reshape(-1, 2)).reshape(knots.shape)
+    iu, fu = np.divmod(np.arange(c1 - c0, dtype=np.float64), GRID_STEP)
+    iu, fu = iu.astype(int), fu / GRID_STEP
+    fv = np.arange(GRID_STEP, dtype=np.float64)[None, :, None] / GRID_STEP
     out = []
-    for k in range(2):  # separably: along each knot row first (small), then down
-        g = shift[..., k]
-        along = g[:, iu] * (1 - fu) + g[:, iu + 1] * fu
-        out.append(along[iv] * (1 - fv) + along[iv + 1] * fv)
-    return u[None, :] + out[0], v[:, None] + out[1]
+    for k in range(2):  # along each knot row first (small), then every cell's rows at once
+        g = mapped[..., k]
+        along = g[:, iu] * (1 - fu) + g[:, iu + 1] * fu  # (knot rows, columns)
+        dense = np.empty((len(along) - 1, GRID_STEP, c1 - c0))  # C order, so that
+        np.multiply((along[1:] - along[:-1])[:, None, :], fv, out=dense)  # reshape is a view
+        dense += along[:-1, None, :]
+        out.append(dense.reshape(-1, c1 - c0)[: r1 - r0])
+    return out[0], out[1]

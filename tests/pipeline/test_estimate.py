@@ -1,0 +1,17 @@
+"""The orchestrator's own arithmetic: the per-pixel standard error it reports."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def test_sigma_is_the_first_order_error_of_matched_and_filled_pixels(result, rig) -> None:
+    s, amb = result.settings, result.ambiguity
+    z = result.depth.astype(np.float64)
+    for filled, noise in ((False, s.stereo_noise_px), (True, s.filled_noise_px)):
+        at = np.isfinite(z) & (result.filled == filled)
+        assert at.sum() > (10 if filled else 10_000)
+        dd = np.hypot(noise / s.stereo_scale, amb.offset_sigma_px)
+        expected = z[at] ** 2 * dd / (rig.focal_px * rig.baseline_lr_m)
+        assert np.allclose(result.sigma[at], expected, rtol=1e-5)
+    assert np.isnan(result.sigma[~np.isfinite(z)]).all()

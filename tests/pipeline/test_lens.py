@@ -1,0 +1,30 @@
+"""The lens's dense maps against its exact per-point maps."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigkit.pipeline.lens import GRID_STEP, Lens, smooth_map
+
+# Strong enough to matter: ~110 px at the corner of a 4608x3456 frame.
+STRONG = Lens(66000.0, (4608, 3456), (30.0, -200.0, 1e-3, -5e-4, 0.0))
+
+
+def test_smooth_map_follows_the_exact_map_between_its_knots() -> None:
+    rows = (5, 5 + 2 * GRID_STEP + 7)  # off the knot lattice, with a partial last cell
+    u, v = smooth_map(STRONG.to_ideal, (0, 4608), rows)
+    assert u.shape == v.shape == (rows[1] - rows[0], 4608)
+    vv, uu = np.mgrid[rows[0]:rows[1], 0:4608]
+    exact = STRONG.to_ideal(np.stack([uu.ravel(), vv.ravel()], 1).astype(np.float64))
+    err = np.hypot(u.ravel() - exact[:, 0], v.ravel() - exact[:, 1])
+    assert np.abs(exact - np.stack([uu.ravel(), vv.ravel()], 1)).max() > 50
+    assert err.max() < 0.005
+    knots = (vv.ravel() - rows[0]) % GRID_STEP == 0
+    knots &= uu.ravel() % GRID_STEP == 0
+    assert err[knots].max() < 1e-9
+
+
+def test_ideal_rows_without_distortion_are_the_pixel_indices() -> None:
+    u, v = Lens(66000.0, (640, 480)).ideal_rows(100, 164)
+    assert u.shape == (1, 640) and v.shape == (64, 1)
+    assert u[0, 639] == 639 and v[0, 0] == 100 and v[63, 0] == 163
