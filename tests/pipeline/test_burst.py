@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigkit.errors import InputError
-from rigkit.pipeline.burst import stack_burst
+from rigkit.pipeline.burst import median, stack_burst
 from rigkit.synth.render import shimmer_field
 
 
@@ -49,3 +49,15 @@ def test_frames_of_another_size_or_place_are_refused() -> None:
     far = np.roll(img, 120, axis=1)
     with pytest.raises(InputError, match="frame 2 is shifted"):
         stack_burst([img, far], "left burst")
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 8])
+def test_median_is_numpys_and_keeps_the_frames(n: int) -> None:
+    rng = np.random.default_rng(n)
+    frames = [rng.normal(0, 50, (37, 53)).astype(np.float32) for _ in range(n)]
+    frames[0][3, 4] = frames[-1][3, 4]  # ties
+    kept = [f.copy() for f in frames]
+    stacked = median(frames, rows=8)  # blocks that do not divide the height
+    assert stacked.dtype == np.float32
+    assert np.array_equal(stacked, np.median(np.stack(frames), axis=0).astype(np.float32))
+    assert all(np.array_equal(f, k) for f, k in zip(frames, kept, strict=True))
