@@ -129,6 +129,11 @@ class Session:
         return {pos: burst[0] for pos, burst in self.bursts.items() if burst}
 
     @property
+    def burst_length(self) -> int:
+        """Frames per position: the shortest burst (1 before any frame is taken)."""
+        return min((len(b) for b in self.bursts.values() if b), default=1)
+
+    @property
     def yaml_path(self) -> Path:
         return self.path / SESSION_FILE
 

@@ -6,6 +6,7 @@ A module's ``register`` adds one subparser and sets ``func`` to a callable
 
 from __future__ import annotations
 
+import argparse
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -22,3 +23,14 @@ def parse_distortion(text: str) -> Distortion:
         return distortion_coefficients([float(x) for x in text.split(",")])
     except ValueError as exc:
         raise InputError(f"--distortion {text!r}: {exc}") from None
+
+
+def count(text: str) -> int:
+    """An argparse type: a whole number >= 1 (frames, readings, ...)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return value

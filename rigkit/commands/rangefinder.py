@@ -10,6 +10,7 @@ import sys
 import time
 from typing import TextIO
 
+from rigkit.commands import count
 from rigkit.errors import InputError
 from rigkit.rangefinder import (
     DEFAULT_TIMEOUT_S,
@@ -56,13 +57,6 @@ def _positive(text: str) -> float:
     value = float(text)
     if not (value > 0 and math.isfinite(value)):
         raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
-    return value
-
-
-def _count(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
     return value
 
 
@@ -144,7 +138,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         log, timeout_help="stop after S seconds without a reading (default: wait forever)"
     )
     log.add_argument("--output", required=True, metavar="FILE", help="JSON-lines file to append to")
-    log.add_argument("--count", type=_count, metavar="N", help="stop after N readings")
+    log.add_argument("--count", type=count, metavar="N", help="stop after N readings")
     log.add_argument(
         "--interval",
         type=_positive,

@@ -7,11 +7,12 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
+from rigkit.commands import count
 from rigkit.reporting.rig_check import format_check
 from rigkit.rig import RigProfile, load_rig
 from rigkit.rig.budget import (
     DISPARITY_ERROR_PX,
-    OFFSET_ERROR_PX,
+    SHIMMER_PX,
     Finding,
     check_rig,
     check_to_dict,
@@ -83,11 +84,26 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help=f"disparity error for the budget (default {DISPARITY_ERROR_PX:g})",
     )
     check.add_argument(
+        "--frames",
+        type=count,
+        default=1,
+        metavar="N",
+        help="frames per position (burst length) the offset's error is budgeted for (default 1)",
+    )
+    check.add_argument(
+        "--shimmer-px",
+        type=_non_negative_float,
+        default=SHIMMER_PX,
+        metavar="PX",
+        help=f"heat shimmer, px RMS per frame, the offset's error is budgeted for "
+        f"(default {SHIMMER_PX:g}: moderate turbulence over 300 m)",
+    )
+    check.add_argument(
         "--offset-error-px",
         type=_non_negative_float,
-        default=OFFSET_ERROR_PX,
         metavar="PX",
-        help=f"error of the global disparity offset for the budget (default {OFFSET_ERROR_PX:g})",
+        help="error of the global disparity offset for the budget, instead of the one "
+        "--frames and --shimmer-px give",
     )
     check.add_argument("--json", action="store_true", help="print JSON instead of tables")
     check.set_defaults(func=run_check)
@@ -123,6 +139,8 @@ def run_check(args: argparse.Namespace) -> int:
         ranges,
         disparity_error_px=args.disparity_error_px,
         offset_error_px=args.offset_error_px,
+        frames=args.frames,
+        shimmer_px=args.shimmer_px,
         capture_findings=_capture_findings(profile, args.capture),
     )
     print(json.dumps(check_to_dict(result), indent=2) if args.json else format_check(result))

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from rigkit.core.tables import render_table
 from rigkit.rig.budget import (
     RELATIVE_ROTATION_DEG,
+    ErrorModel,
     RigCheck,
     affine_residual_px,
     corner_distortion,
@@ -179,7 +180,7 @@ def _budget_table(check: RigCheck) -> str:
         ("C_lr", f"{lr.tolerance_m:g} m"),
         ("C_lb", f"{lb.tolerance_m:g} m"),
         ("focal", f"{100 * model.focal_tolerance:g} %"),
-        ("offset", f"{model.offset_error_px:g} px"),
+        ("offset", f"{model.offset_error_px:.2g} px"),
         ("lens", f"{model.lens_error_px:.2g} px"),
         ("total", "m"),
         ("total", "%"),
@@ -205,10 +206,21 @@ def _budget_table(check: RigCheck) -> str:
         "  lens, dz = z e for a relative error e); total is their root-sum-square. f and C_lr\n"
         "  errors cancel at the back-camera anchor's depth: see docs/rig-profiles.md.\n"
         f"  lens: the disparity error of a lens model {model.lens_corner_px:.2g} px off at the "
-        f"corner, views turned by {RELATIVE_ROTATION_DEG:g} deg."
+        f"corner, views turned by {RELATIVE_ROTATION_DEG:g} deg.\n"
+        f"  offset: {_offset_basis(model)}"
     )
     title = "depth error budget, metres (source and its size in the header)"
     return "\n".join([title, _table(header, rows), *reach, note])
+
+
+def _offset_basis(model: ErrorModel) -> str:
+    if model.frames is None or model.shimmer_px is None:
+        return "as given (--offset-error-px)."
+    frames = f"{model.frames} frame{'s' if model.frames > 1 else ''}"
+    return (
+        f"{frames} per position under {model.shimmer_px:g} px RMS of heat shimmer "
+        "(--frames,\n  --shimmer-px); N frames divide the shimmer's share by about sqrt(N)."
+    )
 
 
 def _reach_text(check: RigCheck, range_m: float | None) -> str:

@@ -43,18 +43,22 @@ class Verdict:
     advice: tuple[str, ...]
 
 
-def tolerance_pct(profile: RigProfile, range_m: float, limit_pct: float = LIMIT_PCT) -> float:
-    """The tolerance at ``range_m`` metres: ``limit_pct`` or the rig's 2-sigma, in %."""
+def tolerance_pct(
+    profile: RigProfile, range_m: float, limit_pct: float = LIMIT_PCT, frames: int = 1
+) -> float:
+    """The tolerance at ``range_m`` metres: ``limit_pct`` or the rig's 2-sigma, in %,
+    for ``frames`` per position (the offset's share of the budget shrinks with them)."""
     if not math.isfinite(range_m) or range_m <= 0:
         return limit_pct
-    expected = budget_row(ErrorModel.from_profile(profile), range_m).total_fraction
+    model = ErrorModel.from_profile(profile, frames=frames)
+    expected = budget_row(model, range_m).total_fraction
     return max(limit_pct, 100.0 * BUDGET_SIGMAS * expected)
 
 
-def judge_target(row: Comparison, profile: RigProfile, limit_pct: float = LIMIT_PCT
-                 ) -> TargetVerdict:
-    """One comparison row against its tolerance."""
-    tolerance = tolerance_pct(profile, row.laser_range_m, limit_pct)
+def judge_target(row: Comparison, profile: RigProfile, limit_pct: float = LIMIT_PCT,
+                 frames: int = 1) -> TargetVerdict:
+    """One comparison row against its tolerance (``frames`` per position)."""
+    tolerance = tolerance_pct(profile, row.laser_range_m, limit_pct, frames)
     if row.status == STATUS_NO_READING:
         return TargetVerdict(row.target, False, tolerance, "no laser reading")
     if row.status == STATUS_NO_ESTIMATE:
@@ -64,13 +68,14 @@ def judge_target(row: Comparison, profile: RigProfile, limit_pct: float = LIMIT_
     return TargetVerdict(row.target, False, tolerance, f"off by {row.error_pct:+.1f} %")
 
 
-def judge(rows: Sequence[Comparison], profile: RigProfile, limit_pct: float = LIMIT_PCT
-          ) -> Verdict:
-    """The verdict on one run's comparison rows (one per target)."""
+def judge(rows: Sequence[Comparison], profile: RigProfile, limit_pct: float = LIMIT_PCT,
+          frames: int = 1) -> Verdict:
+    """The verdict on one run's comparison rows (one per target), captured with
+    ``frames`` per position."""
     if not rows:
         return Verdict(False, "no laser targets: nothing to check the depth against", (),
                        ("mark at least one target and fire the laser at it",))
-    targets = tuple(judge_target(row, profile, limit_pct) for row in rows)
+    targets = tuple(judge_target(row, profile, limit_pct, frames) for row in rows)
     passed = sum(t.ok for t in targets)
     widest = max(t.tolerance_pct for t in targets)
     within = f"{limit_pct:g} %" if widest <= limit_pct else f"tolerance (up to {widest:.1f} %)"

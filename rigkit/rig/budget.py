@@ -9,7 +9,9 @@ Error budget, each source alone, to first order (|dz| in metres):
 * disparity d = f * C_lr / z (pixels)
 * a disparity error dd (pixels):             dz = z**2 * dd / (f * C_lr)
 * a relative error e in f, C_lr or C_lb:     dz = z * e
-* an error dq in the global disparity offset: dz = z**2 * dq / (f * C_lr)
+* an error dq in the global disparity offset: dz = z**2 * dq / (f * C_lr), with dq
+  measured on rendered scenes as a function of heat shimmer and burst length
+  (:func:`expected_offset_error_px`)
 * a lens distortion error that moves the image corner by dc (pixels): where a
   rotation g between cameras moves the image by s = f tan(g), a radial error growing
   as r**3 changes by up to 3 dc s / r_c between the two positions of a point: a
@@ -39,8 +41,20 @@ from rigkit.rig.profile import Baseline, RigProfile, rig_to_dict
 
 DISPARITY_ERROR_PX = PipelineSettings().stereo_noise_px
 """Default disparity (matching) error, pixels: the pipeline's own figure."""
-OFFSET_ERROR_PX = 0.5
-"""Default error of the global disparity offset after ambiguity removal, pixels."""
+REFERENCE_SIZE = (4608, 3456)
+"""The image size at which the measured figures below hold (scaled by the diagonal)."""
+OFFSET_FLOOR_PX = 0.37
+"""Error of the global disparity offset without heat shimmer, px at REFERENCE_SIZE:
+what the views' principal points (up to ±30 px each in those scenes) leave: 0.37 px
+RMS over 20 ideal scenes (docs/results.md)."""
+OFFSET_PER_SHIMMER_PX = 2.8
+"""Offset error per px RMS of heat shimmer in one frame per position: on 20 field
+scenes at 0.3 px the offset was off by 0.92 px RMS, 0.84 px of it beyond the floor.
+Shimmer moves ~50 px patches together, so matching more points does not lower it;
+only more frames do, by ~1/sqrt(frames) (docs/pipeline.md, "Field conditions")."""
+SHIMMER_PX = 0.3
+"""Default heat shimmer, px RMS per frame: moderate turbulence over 300 m at ~19 urad
+per pixel (docs/field.md)."""
 BUDGET_RANGES_M = (100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0)
 TARGET_FRACTIONS = (0.01, 0.03)
 """Relative depth errors whose onset range the check reports (1 % and 3 %)."""
@@ -62,6 +76,21 @@ OVERLAP_LIMIT = 0.5
 
 
 # --------------------------------------------------------------------------- formulas
+
+
+def expected_offset_error_px(
+    image_size: tuple[int, int], frames: int = 1, shimmer_px: float = SHIMMER_PX
+) -> float:
+    """Expected error of the global disparity offset, px at ``image_size``, for bursts
+    of ``frames`` per position under ``shimmer_px`` RMS of heat shimmer (px at that
+    size): the floor without shimmer and the shimmer's share, root-sum-square."""
+    if frames < 1:
+        raise InputError(f"frames per position must be >= 1, got {frames}")
+    if not shimmer_px >= 0:
+        raise InputError(f"shimmer must be >= 0 px, got {shimmer_px:g}")
+    scale = math.hypot(*image_size) / math.hypot(*REFERENCE_SIZE)
+    shimmer = OFFSET_PER_SHIMMER_PX * shimmer_px / math.sqrt(frames)
+    return math.hypot(OFFSET_FLOOR_PX * scale, shimmer)
 
 
 def disparity_px(range_m: float, focal_px: float, baseline_m: float) -> float:
@@ -158,18 +187,28 @@ class ErrorModel:
     baseline_lr: Baseline
     baseline_lb: Baseline
     disparity_error_px: float = DISPARITY_ERROR_PX
-    offset_error_px: float = OFFSET_ERROR_PX
+    offset_error_px: float = OFFSET_FLOOR_PX
     lens_corner_px: float = 0.0
     lens_error_px: float = 0.0
+    frames: int | None = None
+    shimmer_px: float | None = None
+    """What ``offset_error_px`` was derived from (None: it was given)."""
 
     @classmethod
     def from_profile(
         cls,
         profile: RigProfile,
         disparity_error_px: float = DISPARITY_ERROR_PX,
-        offset_error_px: float = OFFSET_ERROR_PX,
+        offset_error_px: float | None = None,
+        frames: int = 1,
+        shimmer_px: float = SHIMMER_PX,
     ) -> ErrorModel:
-        """The model for a profile (its focal length, tolerances, baselines and lens)."""
+        """The model for a profile (its focal length, tolerances, baselines and lens).
+        The offset's error is ``offset_error_px`` where given, else what ``frames`` per
+        position under ``shimmer_px`` of shimmer leave (:func:`expected_offset_error_px`)."""
+        derived = offset_error_px is None
+        if offset_error_px is None:
+            offset_error_px = expected_offset_error_px(profile.image_size, frames, shimmer_px)
         corner = lens_corner_error_px(profile)
         return cls(
             focal_px=profile.focal_px,
@@ -180,6 +219,8 @@ class ErrorModel:
             offset_error_px=offset_error_px,
             lens_corner_px=corner,
             lens_error_px=lens_disparity_error_px(corner, profile.focal_px, profile.image_size),
+            frames=frames if derived else None,
+            shimmer_px=shimmer_px if derived else None,
         )
 
     @property
@@ -414,16 +455,20 @@ def check_rig(
     profile: RigProfile,
     ranges_m: Sequence[float],
     disparity_error_px: float = DISPARITY_ERROR_PX,
-    offset_error_px: float = OFFSET_ERROR_PX,
+    offset_error_px: float | None = None,
     capture_findings: Sequence[Finding] = (),
+    frames: int = 1,
+    shimmer_px: float = SHIMMER_PX,
 ) -> RigCheck:
     """Run the geometry check and the error budget; ``capture_findings`` (from
     :func:`rigkit.capture.checks.check_capture`, when frames were given) are appended
-    to the geometry warnings."""
+    to the geometry warnings. The offset's error: see :meth:`ErrorModel.from_profile`."""
     for value in ranges_m:
         if not value > 0:
             raise InputError(f"ranges must be > 0 m, got {value:g}")
-    model = ErrorModel.from_profile(profile, disparity_error_px, offset_error_px)
+    model = ErrorModel.from_profile(
+        profile, disparity_error_px, offset_error_px, frames, shimmer_px
+    )
     geometry = tuple(geometry_at(profile, z, disparity_error_px) for z in ranges_m)
     findings = geometry_warnings(profile, geometry, model)
     findings += capture_findings
@@ -462,6 +507,8 @@ def check_to_dict(check: RigCheck) -> dict[str, Any]:
         "assumptions": {
             "disparity_error_px": model.disparity_error_px,
             "offset_error_px": model.offset_error_px,
+            "offset_frames_per_position": model.frames,
+            "offset_shimmer_px": model.shimmer_px,
             "lens_error_px": model.lens_error_px,
             "focal_tolerance": model.focal_tolerance,
             "relative_rotation_deg": RELATIVE_ROTATION_DEG,

@@ -584,7 +584,7 @@ class ProcessScreen(StepScreen):
     def _show_results(self, rows: list[Comparison]) -> None:
         session = session_of(self)
         self.query_one(ProgressBar).update(progress=1.0)
-        verdict = judge(rows, session.rig())
+        verdict = judge(rows, session.rig(), frames=session.burst_length)
         table = self.query_one(DataTable)
         table.clear()
         for row, target in zip(rows, verdict.targets, strict=True):

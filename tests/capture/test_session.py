@@ -226,6 +226,7 @@ def test_a_burst_is_listed_in_order_and_read_back(tmp_path: Path) -> None:
     session = add_frame(session, "left", png(tmp_path / "c.png", seed=2), burst=True)
     files = [f.file for f in session.bursts["left"]]
     assert files == ["raw/a.png", "raw/b.png", "raw/c.png"]
+    assert session.burst_length == 3  # the shortest burst among positions with frames
     assert session.frames["left"].file == "raw/a.png"  # the first fixes the grid
     again = load_session(tmp_path / "s")
     assert again.bursts["left"] == session.bursts["left"]

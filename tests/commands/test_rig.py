@@ -15,7 +15,7 @@ from tests.rig.test_budget import P1000, _profile
 
 
 def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["rig", "check", str(P1000)]) == 0
+    assert main(["rig", "check", str(P1000), "--offset-error-px", "0.5"]) == 0
     out = capsys.readouterr().out
     assert "53,251 px +-1 %" in out
     assert "4.95 x 3.72 deg" in out
@@ -24,7 +24,40 @@ def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
     # corner: a = 0.74 px / (f C_lr); b = 1.73 %; z = sqrt(0.03^2 - b^2) / a.
     assert "3 % depth error: reached at 3,528 m" in out
     assert "lens           none given; fitted from the three views" in out
+    assert "offset: as given (--offset-error-px)." in out
     assert out.rstrip().endswith("warnings: none")
+
+
+@pytest.mark.parametrize(
+    ("args", "offset_px", "reach"),
+    [
+        # One frame under 0.3 px of shimmer: hypot(0.37, 2.8 x 0.3) = 0.92 px.
+        ([], 0.918, "2,444 m"),
+        # Five frames: the shimmer's share over sqrt(5), hypot(0.37, 0.84 / sqrt(5)).
+        (["--frames", "5"], 0.527, "3,441 m"),
+        # No shimmer: what the principal points leave.
+        (["--shimmer-px", "0"], 0.37, "3,961 m"),
+    ],
+)
+def test_cli_offset_from_frames_and_shimmer(
+    args: list[str], offset_px: float, reach: str | None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["rig", "check", str(P1000), *args]) == 0
+    out = capsys.readouterr().out
+    assert f"{offset_px:.2g} px" in out
+    if reach:
+        assert f"3 % depth error: reached at {reach}" in out
+    assert main(["rig", "check", str(P1000), *args, "--json"]) == 0
+    assumptions = json.loads(capsys.readouterr().out)["assumptions"]
+    assert assumptions["offset_error_px"] == pytest.approx(offset_px, abs=1e-3)
+    assert assumptions["offset_frames_per_position"] == (5 if "5" in args else 1)
+
+
+def test_cli_rejects_no_frames(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["rig", "check", str(P1000), "--frames", "0"])
+    assert exc.value.code == 2
+    assert "--frames: must be at least 1, got 0" in capsys.readouterr().err
 
 
 def test_cli_json_and_warning_exit_code(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

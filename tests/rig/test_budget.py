@@ -21,6 +21,7 @@ from rigkit.rig.budget import (
     check_rig,
     depth_error_from_disparity,
     disparity_px,
+    expected_offset_error_px,
     range_reaching,
     triangulation_angle_deg,
 )
@@ -123,6 +124,30 @@ def test_range_reaching_when_tolerances_alone_exceed_it() -> None:
 def test_range_reaching_without_range_dependent_errors_is_never() -> None:
     model = _model(disparity_error_px=0.0, offset_error_px=0.0)
     assert range_reaching(model, 0.03) is None
+
+
+def test_offset_error_from_frames_and_shimmer() -> None:
+    full = (4608, 3456)
+    # The floor (principal points) and the shimmer's share (2.8 px per px), RSS.
+    assert expected_offset_error_px(full) == pytest.approx(math.hypot(0.37, 0.84))
+    assert expected_offset_error_px(full, frames=4) == pytest.approx(math.hypot(0.37, 0.42))
+    assert expected_offset_error_px(full, shimmer_px=0.0) == pytest.approx(0.37)
+    # A quarter-size image: the floor in its pixels is a quarter, the shimmer is given
+    # in its pixels already.
+    assert expected_offset_error_px((1152, 864), shimmer_px=0.0) == pytest.approx(0.0925)
+    with pytest.raises(InputError, match="frames per position must be >= 1, got 0"):
+        expected_offset_error_px(full, frames=0)
+
+
+def test_the_profile_model_budgets_one_frame_unless_told(tmp_path: Path) -> None:
+    profile = load_rig(P1000)
+    derived = ErrorModel.from_profile(profile)
+    assert derived.offset_error_px == pytest.approx(math.hypot(0.37, 0.84))
+    assert (derived.frames, derived.shimmer_px) == (1, 0.3)
+    burst = ErrorModel.from_profile(profile, frames=5)
+    assert burst.offset_error_px < derived.offset_error_px
+    given = ErrorModel.from_profile(profile, offset_error_px=0.5)
+    assert given.offset_error_px == 0.5 and given.frames is None
 
 
 def test_back_camera_anchor_hand_computed() -> None:
