@@ -6,6 +6,7 @@ print the Table-1-style evaluation.
     python benchmarks/eval_synthetic.py --field --seeds 201-220 --work out/field20
     python benchmarks/eval_synthetic.py --field --corner-distortion 0.2 --work out/field20-dist
     python benchmarks/eval_synthetic.py --field --corner-distortion 0.2 --give-distortion ...
+    python benchmarks/eval_synthetic.py --field --set distance_m=500 --set hfov_deg=3 ...
 
 Seeds 101-120 were never used while developing the pipeline (development used 1-5).
 ``--field`` renders what a real capture has (``rigkit synth --field``: sky, haze,
@@ -20,7 +21,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +49,22 @@ def scene_params(args: argparse.Namespace) -> SynthParams:
         params = field_params(params)
     if args.corner_distortion:
         params = replace(params, distortion=(corner_k1(params, args.corner_distortion), 0, 0, 0, 0))
-    return replace(params, burst=args.burst)
+    params = replace(params, burst=args.burst, **dict(args.set))
+    params.validate()
+    return params
+
+
+def synth_setting(text: str) -> tuple[str, float | int]:
+    """``NAME=VALUE`` for one numeric :class:`SynthParams` field, e.g. ``distance_m=500``."""
+    name, _, value = text.partition("=")
+    kinds = {f.name: f.type for f in fields(SynthParams)}
+    if kinds.get(name) not in ("int", "float"):
+        numeric = ", ".join(n for n, k in kinds.items() if k in ("int", "float"))
+        raise argparse.ArgumentTypeError(f"{name!r}: not a numeric scene setting ({numeric})")
+    try:
+        return name, int(value) if kinds[name] == "int" else float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name}: not a number: {value!r}") from None
 
 
 def offset_error_px(depth: np.ndarray, truth, rig: RigGeometry) -> float:
@@ -98,11 +114,17 @@ def main() -> int:
     ap.add_argument("--fixed-lens", action="store_true",
                     help="take the distortion as given (zeros unless --give-distortion) "
                     "instead of fitting it from the views (distortion_terms = 0)")
+    ap.add_argument("--set", type=synth_setting, action="append", default=[],
+                    metavar="NAME=VALUE", help="a scene setting (a SynthParams field) over "
+                    "the preset's, e.g. distance_m=500; repeat for several")
     ap.add_argument("--burst", type=int, default=1,
                     help="frames per position, median-stacked (the time includes loading "
                     "and stacking)")
     args = ap.parse_args()
-    params = scene_params(args)
+    try:
+        params = scene_params(args)
+    except RigkitError as exc:
+        ap.error(str(exc))
     settings = PipelineSettings(distortion_terms=0) if args.fixed_lens else PipelineSettings()
     coverage, lens_coverage = [], []
     scenes, depth_dir = args.work / "scenes", args.work / "depth"

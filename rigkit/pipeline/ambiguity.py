@@ -233,6 +233,15 @@ def _principal_point_beta_sigma(fit, camera_sigma_px: float) -> float:
     return float(np.linalg.norm(sensitivity) * np.sqrt(2) * camera_sigma_px)
 
 
+def spatial_blocks(px: np.ndarray, blocks: int) -> np.ndarray:
+    """Which of a ``blocks`` x ``blocks`` grid over the points' bounding box each of
+    the (N, 2) pixel positions ``px`` lies in: (N,) int labels. Blocks far wider than
+    heat shimmer's patches hold errors that are nearly independent of each other's."""
+    lo, hi = px.min(axis=0), px.max(axis=0) + 1e-9
+    cell = np.floor((px - lo) / (hi - lo) * blocks).astype(int)
+    return cell[:, 1] * blocks + cell[:, 0]
+
+
 def _jackknife_beta_sigma(
     p: np.ndarray, args: tuple, left_px: np.ndarray, blocks: int
 ) -> float:
@@ -241,9 +250,7 @@ def _jackknife_beta_sigma(
     that neighbouring matches share - heat shimmer moves whole patches - are invisible
     to the least-squares covariance, which takes every residual as independent.
     left_px: (N, 2) left pixels of the matches in ``args``."""
-    lo, hi = left_px.min(axis=0), left_px.max(axis=0) + 1e-9
-    cell = np.floor((left_px - lo) / (hi - lo) * blocks).astype(int)
-    label = cell[:, 1] * blocks + cell[:, 0]
+    label = spatial_blocks(left_px, blocks)
     rect, xr, d, pb, c_lr, c_lb = args
     betas = []
     for b in np.unique(label):

@@ -58,9 +58,9 @@ def left_grid(
     lens = lens or Lens(float(rect.K[0, 0]), (W, H))
     for r0 in range(0, H, CHUNK_ROWS):
         u, v = lens.ideal_rows(r0, min(r0 + CHUNK_ROWS, H))
-        w = 1.0 / (h[2, 0] * u + (h[2, 1] * v + h[2, 2]))
-        uf = (h[0, 0] * u + (h[0, 1] * v + h[0, 2])) * w
-        vf = (h[1, 0] * u + (h[1, 1] * v + h[1, 2])) * w
+        inv = 1.0 / (h[2, 0] * u + (h[2, 1] * v + h[2, 2]))  # homogeneous weight
+        uf = (h[0, 0] * u + (h[0, 1] * v + h[0, 2])) * inv
+        vf = (h[1, 0] * u + (h[1, 1] * v + h[1, 2])) * inv
         xs = (S[0, 0] * uf + S[0, 2]).astype(np.float32)
         ys = (S[1, 1] * vf + S[1, 2]).astype(np.float32)
         yield slice(r0, r0 + uf.shape[0]), xs, ys, uf

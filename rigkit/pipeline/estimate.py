@@ -245,7 +245,7 @@ def _lens(
     start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
     fit = fit_distortion(
         raw_lr, raw_lb, start, given, rig.baseline_lr_m, rig.baseline_lb_m, s.distortion_terms,
-        s.principal_point_sigma * size[0],
+        s.principal_point_sigma * size[0], s.jackknife_blocks,
     )
     return Lens(rig.focal_px, size, fit.distortion), fit
 

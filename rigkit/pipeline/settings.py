@@ -27,7 +27,9 @@ class PipelineSettings:
     pixel has no surface to match (sky, blank walls, clipped highlights); ``texture_window_px``
     the window (stereo px) that contrast is measured over. Ambiguity removal:
     ``edge_window_px`` matches this close (stereo px) to a depth edge are not used;
-    ``jackknife_blocks`` spatial blocks per image side for the offset's standard error;
+    ``jackknife_blocks`` spatial blocks per image side for the standard errors of the
+    offset (a block jackknife) and of the fitted lens (cluster-robust), which heat
+    shimmer's patch-wise errors would otherwise make too small;
     ``principal_point_sigma`` how far (one standard deviation, as a fraction of the
     image width) each view's principal point may sit from the image centre, which the
     pipeline assumes: its effect is added to the standard errors of the offset and of
