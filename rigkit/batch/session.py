@@ -133,6 +133,9 @@ def _process_locked(
         compare_target(session, target, result.depth, result.sigma, run_id)
         for target in session.targets
     )
+    offset_warning = result.offset_warning()
+    if offset_warning:
+        warnings = (*warnings, offset_warning)
     report("writing results", 0.92)
     meta = {
         "run_id": run_id,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -169,6 +170,9 @@ def run(args: argparse.Namespace) -> int:
         f"offset {a.offset_px:.2f} +- {a.offset_sigma_px:.2f} px{fitted}, "
         f"{sum(result.timings_s.values()):.1f} s)"
     )
+    warning = result.offset_warning()
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 

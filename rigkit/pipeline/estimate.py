@@ -61,6 +61,9 @@ class DepthResult:
     bool, pixels with nothing to match (sky, blank or clipped areas): NaN in depth.
     ``distortion``: the lens the depth went through (OpenCV ``k1, k2, p1, p2, k3``);
     ``lens_fit``: how it was fitted from the views (None: taken as given).
+    ``offset_depth_fraction``: the relative depth error (one sigma, unitless) that the
+    disparity offset's uncertainty alone leaves at the median depth; it is the same
+    for every pixel of that depth, so averaging over pixels does not reduce it.
     """
 
     depth: np.ndarray
@@ -77,6 +80,19 @@ class DepthResult:
     distortion: Distortion = NO_DISTORTION
     lens_fit: LensFit | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
+    offset_depth_fraction: float = float("nan")
+
+    def offset_warning(self) -> str | None:
+        """One line for the user where the offset's uncertainty alone exceeds
+        ``OFFSET_WARNING_FRACTION`` of depth (None otherwise)."""
+        if not self.offset_depth_fraction > OFFSET_WARNING_FRACTION:
+            return None
+        return (
+            f"the disparity offset alone leaves +-{100 * self.offset_depth_fraction:.2f} % "
+            "of depth (1 sigma) at the median range; bursts of several frames per "
+            "position (against heat shimmer) and full-resolution frames reduce it "
+            "(docs/field.md)"
+        )
 
     def diagnostics(self) -> dict[str, object]:
         """JSON-ready summary: settings, warps, offset, match counts, timings."""
@@ -89,6 +105,7 @@ class DepthResult:
             "disparity_offset_px": a.offset_px,
             "disparity_offset_sigma_px": a.offset_sigma_px,
             "disparity_offset_sigma_principal_point_px": a.principal_point_sigma_px,
+            "offset_depth_error_fraction": self.offset_depth_fraction,
             "right_yaw_correction_rad": a.beta,
             "back_rotation_rotvec_rad": [float(x) for x in a.back_rotvec],
             "back_offset_m": list(a.back_offset_m),
@@ -119,6 +136,9 @@ class DepthResult:
 
 
 Progress = Callable[[str, float], None]
+OFFSET_WARNING_FRACTION = 0.003
+"""Above this relative depth error from the offset alone (one sigma) the result says
+so: the field issue's bar for a scene's median bias, which bursts meet."""
 
 
 def _check_sizes(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:
@@ -199,6 +219,8 @@ def estimate_depth(
                           amb.beta, rig.baseline_lr_m, left.shape, lens)
     filled, no_surface = both[..., 0], both[..., 1]
     sigma = _depth_sigma(depth, filled, rig, amb, s)
+    z_median = float(np.nanmedian(depth)) if np.isfinite(depth).any() else float("nan")
+    offset_fraction = z_median * amb.offset_sigma_px / (rig.focal_px * rig.baseline_lr_m)
     lap("depth", 1.0)
     return DepthResult(
         depth=depth,
@@ -215,6 +237,7 @@ def estimate_depth(
         distortion=lens.distortion,
         lens_fit=lens_fit,
         timings_s=timings,
+        offset_depth_fraction=offset_fraction,
     )
 
 

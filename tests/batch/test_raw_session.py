@@ -92,7 +92,9 @@ def test_raw_session_end_to_end(dng_frames: dict, synth_session: Path, tmp_path:
     for row in rows:
         true_range = float(session.target(row.target).note.split()[2])
         assert row.estimate_range_m == pytest.approx(true_range, rel=0.015)
-    assert outcome.warnings == ()  # same focal length and exposure, 7 minutes apart
+    # No capture warning (same focal length and exposure, 7 minutes apart); at most the
+    # note on the offset's share of depth error, which these small frames may get.
+    assert [w for w in outcome.warnings if "disparity offset" not in w] == []
     for view, frame in load_session(path).frames.items():
         assert hashlib.sha256((path / frame.file).read_bytes()).hexdigest() == hashes[view]
         assert hashlib.sha256(dng_frames[view].read_bytes()).hexdigest() == hashes[view]

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
+
+from rigkit.pipeline.estimate import OFFSET_WARNING_FRACTION
 
 
 def test_sigma_is_the_first_order_error_of_matched_and_filled_pixels(result, rig) -> None:
@@ -15,3 +20,14 @@ def test_sigma_is_the_first_order_error_of_matched_and_filled_pixels(result, rig
         expected = z[at] ** 2 * dd / (rig.focal_px * rig.baseline_lr_m)
         assert np.allclose(result.sigma[at], expected, rtol=1e-5)
     assert np.isnan(result.sigma[~np.isfinite(z)]).all()
+
+
+def test_offset_share_of_depth_error_and_its_warning(result, rig) -> None:
+    z = float(np.nanmedian(result.depth))
+    expected = z * result.ambiguity.offset_sigma_px / (rig.focal_px * rig.baseline_lr_m)
+    assert result.offset_depth_fraction == pytest.approx(expected)
+    assert result.diagnostics()["offset_depth_error_fraction"] == result.offset_depth_fraction
+    assert result.offset_depth_fraction < OFFSET_WARNING_FRACTION  # no shimmer here
+    assert result.offset_warning() is None
+    shaky = replace(result, offset_depth_fraction=0.0042)
+    assert "+-0.42 % of depth" in str(shaky.offset_warning())
