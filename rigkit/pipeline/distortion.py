@@ -301,8 +301,10 @@ def _lens_sigmas(
     # Each term is the fraction of the corner radius it moves the corner by.
     grad = np.full(n, corner_radius(lens) * lens.focal_px)
     Jp, rp, inlier = _plain_jacobian(problem, fit.x)
-    if inlier.sum() < MIN_TRACKS:  # the fit explains too few tracks to say how well
-        return float("inf"), float("inf"), float("inf")
+    if inlier.sum() < MIN_TRACKS:
+        # The fit explains too few tracks to say how well: as when too few are seen
+        # by all three views, it is not taken and the given lens is kept.
+        return float("inf"), float("inf"), 0.0
     try:
         iid = np.linalg.inv(J.T @ J) * float(r @ r) / dof
         try:

@@ -105,7 +105,9 @@ class DepthResult:
             "disparity_offset_px": a.offset_px,
             "disparity_offset_sigma_px": a.offset_sigma_px,
             "disparity_offset_sigma_principal_point_px": a.principal_point_sigma_px,
-            "offset_depth_error_fraction": self.offset_depth_fraction,
+            "offset_depth_error_fraction": self.offset_depth_fraction
+            if np.isfinite(self.offset_depth_fraction)
+            else None,
             "right_yaw_correction_rad": a.beta,
             "back_rotation_rotvec_rad": [float(x) for x in a.back_rotvec],
             "back_offset_m": list(a.back_offset_m),
