@@ -83,16 +83,8 @@ class DepthResult:
     offset_depth_fraction: float = float("nan")
 
     def offset_warning(self) -> str | None:
-        """One line for the user where the offset's uncertainty alone exceeds
-        ``OFFSET_WARNING_FRACTION`` of depth (None otherwise)."""
-        if not self.offset_depth_fraction > OFFSET_WARNING_FRACTION:
-            return None
-        return (
-            f"the disparity offset alone leaves +-{100 * self.offset_depth_fraction:.2f} % "
-            "of depth (1 sigma) at the median range; bursts of several frames per "
-            "position (against heat shimmer) and full-resolution frames reduce it "
-            "(docs/field.md)"
-        )
+        """See :func:`offset_warning`."""
+        return offset_warning(self.offset_depth_fraction)
 
     def diagnostics(self) -> dict[str, object]:
         """JSON-ready summary: settings, warps, offset, match counts, timings."""
@@ -141,6 +133,19 @@ Progress = Callable[[str, float], None]
 OFFSET_WARNING_FRACTION = 0.003
 """Above this relative depth error from the offset alone (one sigma) the result says
 so: the field issue's bar for a scene's median bias, which bursts meet."""
+
+
+def offset_warning(offset_depth_fraction: float) -> str | None:
+    """One line for the user where the offset's uncertainty alone (``offset_depth_fraction``
+    of :class:`DepthResult`) exceeds ``OFFSET_WARNING_FRACTION`` of depth, else None."""
+    if not offset_depth_fraction > OFFSET_WARNING_FRACTION:
+        return None
+    return (
+        f"the disparity offset alone leaves +-{100 * offset_depth_fraction:.2f} % "
+        "of depth (1 sigma) at the median range; bursts of several frames per "
+        "position (against heat shimmer) and full-resolution frames reduce it "
+        "(docs/field.md)"
+    )
 
 
 def _check_sizes(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:

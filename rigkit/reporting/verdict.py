@@ -8,11 +8,15 @@ than its budget. The verdict says what to capture again when a target fails.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
+from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
+from rigkit.pipeline.estimate import offset_warning
 from rigkit.rig.budget import ErrorModel, budget_row
 from rigkit.rig.profile import RigProfile
 
@@ -100,3 +104,15 @@ def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tup
     elif off:
         advice.append("check where the laser hit those targets and fire at them again")
     return tuple(advice)
+
+
+def offset_note(session_path: Path) -> str | None:
+    """The warning the session's latest run gave where its disparity offset alone
+    leaves more than 0.3 % of depth uncertain (:func:`~rigkit.pipeline.estimate.offset_warning`);
+    None without one, or without a readable run."""
+    try:
+        meta = json.loads((session_path / RESULTS_DIR / "depth.json").read_text("utf-8"))
+    except (OSError, ValueError):
+        return None
+    fraction = meta.get("offset_depth_error_fraction") if isinstance(meta, dict) else None
+    return offset_warning(fraction) if isinstance(fraction, int | float) else None

@@ -35,7 +35,7 @@ from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.capture.field import Check, check_image, frames_at, next_step, reading_from_device
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow
-from rigkit.reporting.verdict import judge
+from rigkit.reporting.verdict import judge, offset_note
 from rigkit.rig.budget import budget_row, check_rig
 from rigkit.rig.optics import fov_deg
 from rigkit.tui.previews import preview_widget
@@ -593,6 +593,9 @@ class ProcessScreen(StepScreen):
                           error, "✔" if target.ok else "✘")
         colour = "$success" if verdict.ok else "$error"
         advice = "".join(f"\n- {_escape(a)}" for a in verdict.advice)
+        note = offset_note(session.path)
+        if note:
+            advice += f"\n[$warning]{_escape(note)}[/]"
         self.query_one("#verdict", Static).update(
             f"[b {colour}]{_escape(verdict.headline)}[/]{advice}")
         depth = cv2.imread(str(session.path / RESULTS_DIR / "depth.png"), cv2.IMREAD_COLOR)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
+from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING
-from rigkit.reporting.verdict import judge, tolerance_pct
+from rigkit.reporting.verdict import judge, offset_note, tolerance_pct
 from rigkit.rig import load_rig
 from tests.conftest import make_row
 
@@ -62,3 +64,15 @@ def test_a_loose_rig_states_its_tolerance() -> None:
 def test_no_targets_is_not_done() -> None:
     verdict = judge([], SYNTHETIC)
     assert not verdict.ok and "no laser targets" in verdict.headline
+
+
+def test_offset_note_from_the_latest_run(tmp_path: Path) -> None:
+    assert offset_note(tmp_path) is None  # not processed yet
+    results = tmp_path / RESULTS_DIR
+    results.mkdir()
+    for fraction, note in ((0.0012, None), (0.0042, "+-0.42 % of depth"), (None, None)):
+        (results / "depth.json").write_text(json.dumps({"offset_depth_error_fraction": fraction}))
+        got = offset_note(tmp_path)
+        assert got is None if note is None else note in str(got)
+    (results / "depth.json").write_text("{not json")
+    assert offset_note(tmp_path) is None
