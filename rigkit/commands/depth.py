@@ -166,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"wrote {out} ({left.shape[1]}x{left.shape[0]}, "
         f"density {100 * float(np.isfinite(result.depth).mean()):.1f} %, "
-        f"median depth {float(np.nanmedian(result.depth)):.1f} m, "
+        f"median depth {result.median_depth_m:.1f} m, "
         f"offset {a.offset_px:.2f} +- {a.offset_sigma_px:.2f} px{fitted}, "
         f"{sum(result.timings_s.values()):.1f} s)"
     )

@@ -64,7 +64,7 @@ RELATIVE_ROTATION_DEG = 1.0
 """Rotation between cameras assumed for the affine residual (paper: up to 1 deg about x, y)."""
 LENS_FIT_CORNER_PX = 0.5
 """Error at the image corner of the distortion the pipeline fits from the views, px at
-4608 x 3456 (field scenes with 0.3 px shimmer, docs/results.md; scaled by the image
+REFERENCE_SIZE (field scenes with 0.3 px shimmer, docs/results.md; scaled by the image
 size for other sizes)."""
 
 STEREO_LIMIT = 0.01
@@ -90,9 +90,14 @@ def expected_offset_error_px(
         raise InputError(f"frames per position must be >= 1, got {frames}")
     if not shimmer_px >= 0:
         raise InputError(f"shimmer must be >= 0 px, got {shimmer_px:g}")
-    scale = math.hypot(*image_size) / math.hypot(*REFERENCE_SIZE)
     shimmer = OFFSET_PER_SHIMMER_PX * shimmer_px / math.sqrt(frames)
-    return math.hypot(OFFSET_FLOOR_PX * scale, shimmer)
+    return math.hypot(OFFSET_FLOOR_PX * _reference_scale(image_size), shimmer)
+
+
+def _reference_scale(image_size: tuple[int, int]) -> float:
+    """A figure in px measured at ``REFERENCE_SIZE`` scaled to ``image_size``: the ratio
+    of the image diagonals."""
+    return math.hypot(*image_size) / math.hypot(*REFERENCE_SIZE)
 
 
 def disparity_px(range_m: float, focal_px: float, baseline_m: float) -> float:
@@ -166,7 +171,7 @@ def lens_corner_error_px(profile: RigProfile) -> float:
     the self-calibration's error when it fits the lens from the views, otherwise the
     given profile's own misfit (lensfun's model converted; a calibrated lens: 0)."""
     if profile.pipeline_settings().distortion_terms:
-        return LENS_FIT_CORNER_PX * math.hypot(*profile.image_size) / math.hypot(4608, 3456)
+        return LENS_FIT_CORNER_PX * _reference_scale(profile.image_size)
     spec = profile.cameras["left"]
     return spec.lens_profile.fit_error_px if spec.lens_profile else 0.0
 

@@ -24,6 +24,7 @@ def test_sigma_is_the_first_order_error_of_matched_and_filled_pixels(result, rig
 
 def test_offset_share_of_depth_error_and_its_warning(result, rig) -> None:
     z = float(np.nanmedian(result.depth))
+    assert result.median_depth_m == z
     expected = z * result.ambiguity.offset_sigma_px / (rig.focal_px * rig.baseline_lr_m)
     assert result.offset_depth_fraction == pytest.approx(expected)
     assert result.diagnostics()["offset_depth_error_fraction"] == result.offset_depth_fraction
