@@ -34,7 +34,7 @@ from rigkit.pipeline.images import load_grey
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene
-from rigkit.synth.evaluate import evaluate_scenes, format_table, visible_in_right, write_csv
+from rigkit.synth.evaluate import evaluate_scenes, format_table, offset_error_px, write_csv
 
 
 def corner_k1(params: SynthParams, percent: float) -> float:
@@ -65,14 +65,6 @@ def synth_setting(text: str) -> tuple[str, float | int]:
         return name, int(value) if kinds[name] == "int" else float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{name}: not a number: {value!r}") from None
-
-
-def offset_error_px(depth: np.ndarray, truth, rig: RigGeometry) -> float:
-    """Median disparity-equivalent error f C_lr (1/z_est - 1/z_true), px, over judged pixels."""
-    judged = visible_in_right(truth) & np.isfinite(depth)
-    z_true = truth.depth("left")[judged].astype(np.float64)
-    fc = rig.focal_px * rig.baseline_lr_m
-    return float(np.median(fc / depth[judged] - fc / z_true))
 
 
 def true_corner_px(truth) -> float:
@@ -151,7 +143,7 @@ def main() -> int:
             continue
         elapsed = time.perf_counter() - t0
         np.save(depth_dir / f"{d.name}.npy", res.depth)
-        err, sigma = offset_error_px(res.depth, truth, rig), res.ambiguity.offset_sigma_px
+        err, sigma = offset_error_px(truth, res.depth, rig.focal_px), res.ambiguity.offset_sigma_px
         coverage.append(abs(err) <= 2 * sigma)
         if res.lens_fit is not None:
             miss = abs(res.lens_fit.corner_px - true_corner_px(truth))

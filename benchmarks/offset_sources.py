@@ -32,15 +32,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rigkit.core.yamlfile import read_strict_yaml
 from rigkit.errors import RigkitError
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.ambiguity import remove_ambiguity
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.images import load_grey
-from rigkit.synth import load_scene
-from rigkit.synth.evaluate import visible_in_right
-from rigkit.synth.io import SCENE_FILE
+from rigkit.synth import SceneTruth, load_scene
+from rigkit.synth.evaluate import offset_error_px
 from rigkit.synth.render import shimmer_field
 
 VIEWS = ("left", "right", "back")
@@ -51,15 +49,13 @@ def _sample(field: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return cv2.remap(field, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderValue=np.nan).ravel()
 
 
-def _shimmer(scene_dir: Path, view: str, shape: tuple[int, int], pts: np.ndarray) -> np.ndarray:
+def _shimmer(truth: SceneTruth, view: str, shape: tuple[int, int], pts: np.ndarray) -> np.ndarray:
     """(N, 2) px: the renderer's shimmer displacement of ``view``'s frame 0 at ``pts``
     (zero where the scene has none); drawn as :func:`rigkit.synth.render.expose` does."""
-    meta = read_strict_yaml(scene_dir / SCENE_FILE, "scene")
-    params = meta.get("params", {})
-    rms, corr = params.get("shimmer_px", 0.0), params.get("shimmer_corr_px", 40.0)
+    rms, corr = truth.params.shimmer_px, truth.params.shimmer_corr_px
     if not rms:
         return np.zeros((len(pts), 2))
-    rng = np.random.default_rng([int(meta["seed"]), sorted(VIEWS).index(view), 0])
+    rng = np.random.default_rng([truth.seed, sorted(VIEWS).index(view), 0])
     dx, dy = shimmer_field(shape, rms, corr, rng)
     return np.stack([_sample(dx, pts), _sample(dy, pts)], axis=1)
 
@@ -77,8 +73,8 @@ def analyse(scene_dir: Path) -> dict[str, float]:
     back_true = cams["back"].project(X)[0]
     ok = np.isfinite(back_true).all(axis=1)
     shape = images["left"].shape
-    predicted = (_shimmer(scene_dir, "left", shape, m.left) @ m.affine[:, :2].T
-                 - _shimmer(scene_dir, "back", shape, back_true))
+    predicted = (_shimmer(truth, "left", shape, m.left) @ m.affine[:, :2].T
+                 - _shimmer(truth, "back", shape, back_true))
     ok &= np.isfinite(predicted).all(axis=1)
     m = replace(m, left=m.left[ok], other=m.other[ok])
     back_true, predicted = back_true[ok], predicted[ok]
@@ -89,10 +85,7 @@ def analyse(scene_dir: Path) -> dict[str, float]:
                                rig.baseline_lb_m, result.settings)
         return amb.offset_px
 
-    judged = visible_in_right(truth) & np.isfinite(result.depth)
-    fc = rig.focal_px * rig.baseline_lr_m
-    z_true = truth.depth("left")[judged]
-    error = -float(np.median(fc / result.depth[judged] - fc / z_true))
+    error = -offset_error_px(truth, result.depth, rig.focal_px)
     ref = offset(back_true)
     matches = offset(m.other) - ref
     return {

@@ -75,6 +75,12 @@ class Ambiguity:
     rms_px: float
     principal_point_sigma_px: float = 0.0
 
+    @property
+    def parameters(self) -> np.ndarray:
+        """(6,) the fitted parameters in the order :func:`back_projection` takes them:
+        ``beta``, the back rotation vector, the back camera's (x, y) offset."""
+        return np.concatenate([[self.beta], self.back_rotvec, self.back_offset_m])
+
 
 def _sample_disparity(
     disparity: np.ndarray, scale: float, rect: Rectification, pts: np.ndarray, edge_window: int
@@ -103,13 +109,21 @@ def _points(rect: Rectification, xr: np.ndarray, d: np.ndarray, beta: float, c_l
     return X_rect @ rect.R_rect  # rectified -> left frame (R_rect^T applied to rows)
 
 
-def _residuals(p, rect, xr, d, pb, c_lr, c_lb):
+def back_projection(
+    p: np.ndarray, rect: Rectification, xr: np.ndarray, d: np.ndarray, c_lr: float, c_lb: float
+) -> np.ndarray:
+    """Where the back camera sees the left points at rectified positions ``xr`` (N, 2)
+    with disparities ``d`` (N,) (full-resolution px, ``x_left - x_right``): (N, 2) px,
+    ideal pinhole, for parameters ``p`` (:attr:`Ambiguity.parameters`)."""
     X = _points(rect, xr, d, p[0], c_lr)
     R = rotvec_to_matrix(p[1:4])
     Xb = (X - np.array([p[4], p[5], -c_lb])) @ R.T
     K = rect.K
-    proj = Xb[:, :2] / Xb[:, 2:3] * K[0, 0] + K[:2, 2]
-    return (proj - pb).ravel()
+    return Xb[:, :2] / Xb[:, 2:3] * K[0, 0] + K[:2, 2]
+
+
+def _residuals(p, rect, xr, d, pb, c_lr, c_lb):
+    return (back_projection(p, rect, xr, d, c_lr, c_lb) - pb).ravel()
 
 
 def back_view_start(

@@ -61,6 +61,16 @@ def visible_in_right(truth: SceneTruth) -> np.ndarray:
     return inside & same & np.isfinite(z)
 
 
+def offset_error_px(truth: SceneTruth, depth: np.ndarray, focal_px: float) -> float:
+    """The disparity offset error of a depth map: the median over judged pixels of
+    ``f C_lr (1/z_est - 1/z_true)`` (px, > 0: disparities too large, depths too
+    short). depth: (H, W) metres, NaN = none; ``focal_px``: the f it was made with."""
+    judged = visible_in_right(truth) & np.isfinite(depth)
+    z_true = truth.depth("left")[judged].astype(np.float64)
+    fc = focal_px * truth.baseline_lr_m
+    return float(np.median(fc / depth[judged] - fc / z_true))
+
+
 def depth_metrics(
     estimate: np.ndarray, truth: np.ndarray, judged: np.ndarray, scene: str = ""
 ) -> Metrics:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +24,7 @@ from rigkit.core.files import write_npy, write_png, write_text
 from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Camera, distortion_coefficients
 from rigkit.synth.render import expose, render_view
-from rigkit.synth.scene import Scene
+from rigkit.synth.scene import Scene, SynthParams
 
 VIEWS = ("left", "right", "back")
 SCENE_FILE = "scene.yaml"
@@ -84,13 +84,16 @@ def write_scene(
 
 @dataclass(frozen=True)
 class SceneTruth:
-    """Ground truth of a scene folder, as ``rigkit eval`` needs it."""
+    """Ground truth of a scene folder, as ``rigkit eval`` needs it, with the generator's
+    ``seed`` and ``params`` that made it (defaults where the folder does not say)."""
 
     path: Path
     cameras: dict[str, Camera]
     focal_px: float
     baseline_lr_m: float
     baseline_lb_m: float
+    seed: int = 0
+    params: SynthParams = field(default_factory=SynthParams)
 
     def depth(self, view: str) -> np.ndarray:
         """(H, W) float32, metres, z in ``view``'s camera frame, NaN where nothing was hit."""
@@ -110,6 +113,16 @@ class SceneTruth:
         while (nxt := paths[0].parent / frame_name(view, len(paths))).is_file():
             paths.append(nxt)
         return paths
+
+
+def _params(values: dict) -> SynthParams:
+    """The generator's settings as recorded in scene.yaml (names it does not know, from
+    another version, are left out)."""
+    known = {f.name for f in fields(SynthParams)}
+    kw = {k: v for k, v in values.items() if k in known}
+    if "distortion" in kw:
+        kw["distortion"] = distortion_coefficients(kw["distortion"])
+    return SynthParams(**kw)
 
 
 def load_scene(path: str | Path) -> SceneTruth:
@@ -142,6 +155,8 @@ def load_scene(path: str | Path) -> SceneTruth:
             focal_px=float(meta["focal_px"]),
             baseline_lr_m=float(meta["baseline_lr_m"]),
             baseline_lb_m=float(meta["baseline_lb_m"]),
+            seed=int(meta.get("seed", 0)),
+            params=_params(meta.get("params") or {}),
         )
     except (KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
         raise InputError(f"{meta_path}: malformed scene description ({exc!r})") from None
