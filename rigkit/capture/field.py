@@ -7,6 +7,9 @@ front end gets the same answers:
   (:func:`rigkit.capture.checks.check_capture`'s rules for the frames present so far);
 * clipped highlights (a saturated sensor leaves nothing to match);
 * the same file taken for two positions (identical content);
+* from the second frame of a burst on: the heat shimmer between the position's first
+  and newest frame, measured at full resolution, and the burst length it calls for at
+  the profile's nominal range;
 * after the right frame: parallax and a plausible rotation. Left and right views of a
   distant scene differ by a near-similarity (shift, small roll, scale ~1) plus the
   depth-dependent parallax; a similarity fitted to sub-pixel matches leaves that
@@ -39,7 +42,9 @@ from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
 from rigkit.errors import RigkitError
 from rigkit.pipeline.features import match_views
+from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.rangefinder.framing import Reading, escape_bytes
+from rigkit.rig.budget import frames_for_offset
 from rigkit.rig.profile import RigProfile
 
 CHECK_SIDE_PX = 1024
@@ -67,7 +72,7 @@ RANGE_FACTOR = 2.0
 class Check:
     """One on-site check's answer: ``ok``, a one-line ``message`` and, when not ok, what
     to ``redo``. ``code`` is stable for machines (``exif``, ``exposure``, ``same_frame``,
-    ``parallax``, ``rotation``, ``scale``, ``magnification``, ``match``)."""
+    ``shimmer``, ``parallax``, ``rotation``, ``scale``, ``magnification``, ``match``)."""
 
     code: str
     ok: bool
@@ -136,13 +141,18 @@ def next_step(session: Session) -> str:
 # -- checks ---------------------------------------------------------------------------------
 
 
+def full_image(session: Session, frame: Frame) -> np.ndarray:
+    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey."""
+    path = session.path / frame.file
+    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
+    return to_pipeline([grey], linear=is_raw(path))[0]
+
+
 def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX
                 ) -> tuple[np.ndarray, float]:
     """A frame as (h, w) float32 grey in [0, 255], its longest side at most ``side_px``,
     and the reduction factor (full-resolution px per check px, >= 1)."""
-    path = session.path / frame.file
-    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
-    image = to_pipeline([grey], linear=is_raw(path))[0]
+    image = full_image(session, frame)
     reduction = max(1.0, max(image.shape) / side_px)
     if reduction > 1.0:
         size = (round(image.shape[1] / reduction), round(image.shape[0] / reduction))
@@ -311,6 +321,38 @@ def _round_range(z: float) -> str:
     return f"{float(f'{z:.2g}'):g}" if z >= 100 else f"{z:.0f}"
 
 
+def shimmer_check(session: Session, position: str) -> Check | None:
+    """Heat shimmer measured between the first and the newest frame of ``position``'s
+    burst at full resolution (:mod:`rigkit.pipeline.shimmer`), and the burst length
+    that keeps the offset within 0.3 % of depth at the profile's nominal range in nine
+    captures out of ten (:func:`rigkit.rig.budget.frames_for_offset`). None for a
+    single frame. Always ok: shimmer is the air's fault, not the frame's."""
+    frames = frames_at(session, position)
+    if len(frames) < 2:
+        return None
+    first = full_image(session, frames[0])
+    where = f"{position} frames 1 and {len(frames)}"
+    try:
+        shimmer = measure_shimmer(first, full_image(session, frames[-1]), where)
+    except RigkitError as exc:
+        return Check("shimmer", True, f"heat shimmer not measured: {exc}")
+    text = f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where})"
+    profile = session.rig()
+    z = profile.nominal_range_m
+    if z is None:
+        return Check("shimmer", True, f"{text}; a nominal range in the rig profile "
+                                      "would give the burst length to take")
+    size = (first.shape[1], first.shape[0])
+    disparity = profile.focal_px * size[0] / profile.image_size[0] * profile.baseline_lr.value_m / z
+    corr = shimmer.corr_px if math.isfinite(shimmer.corr_px) else None
+    need = frames_for_offset(size, disparity, shimmer.rms_px, corr)
+    if need is None:
+        return Check("shimmer", True, f"{text}; at {z:g} m no burst keeps the offset "
+                                      "within 0.3 % of depth")
+    return Check("shimmer", True, f"{text}: take {need} frames per position to keep the "
+                                  f"offset within 0.3 % of depth at {z:g} m (9 times in 10)")
+
+
 def onsite_checks(session: Session, position: str) -> list[Check]:
     """Every check for the newest frame of ``position`` (which must have one)."""
     checks = [exif_check(session, position),
@@ -318,6 +360,9 @@ def onsite_checks(session: Session, position: str) -> list[Check]:
     same = same_frame_check(session, position)
     if same is not None:
         return [*checks, same]
+    shimmer = shimmer_check(session, position)
+    if shimmer is not None:
+        checks.append(shimmer)
     if position == "left" or not frames_at(session, "left"):
         return checks
     left, reduction = check_image(session, frames_at(session, "left")[-1])

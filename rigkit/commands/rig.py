@@ -99,11 +99,18 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         f"(default {SHIMMER_PX:g}: moderate turbulence over 300 m)",
     )
     check.add_argument(
+        "--shimmer-corr-px",
+        type=_positive_float,
+        metavar="PX",
+        help="the shimmer's correlation length, px, as `rigkit field` measures it "
+        "(default: 1 %% of the image width, what the budget was measured at)",
+    )
+    check.add_argument(
         "--offset-error-px",
         type=_non_negative_float,
         metavar="PX",
         help="error of the global disparity offset for the budget, instead of the one "
-        "--frames and --shimmer-px give",
+        "--frames, --shimmer-px and --shimmer-corr-px give",
     )
     check.add_argument("--json", action="store_true", help="print JSON instead of tables")
     check.set_defaults(func=run_check)
@@ -141,6 +148,7 @@ def run_check(args: argparse.Namespace) -> int:
         offset_error_px=args.offset_error_px,
         frames=args.frames,
         shimmer_px=args.shimmer_px,
+        shimmer_corr_px=args.shimmer_corr_px,
         capture_findings=_capture_findings(profile, args.capture),
     )
     print(json.dumps(check_to_dict(result), indent=2) if args.json else format_check(result))

@@ -35,6 +35,7 @@ import numpy as np
 
 from rigkit.errors import InputError
 from rigkit.geometry import distort
+from rigkit.pipeline.estimate import OFFSET_WARNING_FRACTION
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.rig.optics import fov_deg
 from rigkit.rig.profile import Baseline, RigProfile, rig_to_dict
@@ -57,6 +58,14 @@ only more frames do, by ~1/sqrt(frames) (docs/pipeline.md, "Field conditions")."
 SHIMMER_PX = 0.3
 """Default heat shimmer, px RMS per frame: moderate turbulence over 300 m at ~19 urad
 per pixel (docs/field.md)."""
+SHIMMER_CORR = 0.01
+"""Correlation length of the shimmer ``OFFSET_PER_SHIMMER_PX`` was measured under, as a
+fraction of the image width (46 px at 4608; the Gaussian sigma of
+:mod:`rigkit.pipeline.shimmer`)."""
+MAX_FRAMES = 64
+"""The longest burst per position :func:`frames_for_offset` proposes."""
+NINE_IN_TEN = 1.645
+"""A normal error stays within this many standard deviations nine times in ten."""
 BUDGET_RANGES_M = (100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0)
 TARGET_FRACTIONS = (0.01, 0.03)
 """Relative depth errors whose onset range the check reports (1 % and 3 %)."""
@@ -81,17 +90,47 @@ OVERLAP_LIMIT = 0.5
 
 
 def expected_offset_error_px(
-    image_size: tuple[int, int], frames: int = 1, shimmer_px: float = SHIMMER_PX
+    image_size: tuple[int, int],
+    frames: int = 1,
+    shimmer_px: float = SHIMMER_PX,
+    shimmer_corr_px: float | None = None,
 ) -> float:
     """Expected error of the global disparity offset, px at ``image_size``, for bursts
     of ``frames`` per position under ``shimmer_px`` RMS of heat shimmer (px at that
-    size): the floor without shimmer and the shimmer's share, root-sum-square."""
+    size) correlated over ``shimmer_corr_px`` (None: ``SHIMMER_CORR`` of the width, as
+    measured): the floor without shimmer and the shimmer's share, root-sum-square.
+    The share grows with the correlation length, as the number of independent patches
+    on the surface falls with its square (docs/rig-profiles.md)."""
     if frames < 1:
         raise InputError(f"frames per position must be >= 1, got {frames}")
     if not shimmer_px >= 0:
         raise InputError(f"shimmer must be >= 0 px, got {shimmer_px:g}")
-    shimmer = OFFSET_PER_SHIMMER_PX * shimmer_px / math.sqrt(frames)
+    patches = 1.0
+    if shimmer_corr_px is not None:
+        if not shimmer_corr_px > 0:
+            raise InputError(f"shimmer correlation must be > 0 px, got {shimmer_corr_px:g}")
+        patches = shimmer_corr_px / (SHIMMER_CORR * image_size[0])
+    shimmer = OFFSET_PER_SHIMMER_PX * shimmer_px * patches / math.sqrt(frames)
     return math.hypot(OFFSET_FLOOR_PX * _reference_scale(image_size), shimmer)
+
+
+def frames_for_offset(
+    image_size: tuple[int, int],
+    disparity_px: float,
+    shimmer_px: float,
+    shimmer_corr_px: float | None = None,
+) -> int | None:
+    """The fewest frames per position whose expected offset error
+    (:func:`expected_offset_error_px`, taken as normal) keeps the median depth within
+    ``OFFSET_WARNING_FRACTION`` of the truth in nine captures out of ten, at a
+    disparity of ``disparity_px`` (f C_lr / z). None where no burst of up to
+    ``MAX_FRAMES`` does (the floor without shimmer is above it: a farther scene than
+    the rig is for)."""
+    limit = OFFSET_WARNING_FRACTION * disparity_px / NINE_IN_TEN
+    for frames in range(1, MAX_FRAMES + 1):
+        if expected_offset_error_px(image_size, frames, shimmer_px, shimmer_corr_px) <= limit:
+            return frames
+    return None
 
 
 def _reference_scale(image_size: tuple[int, int]) -> float:
@@ -199,7 +238,9 @@ class ErrorModel:
     lens_error_px: float = 0.0
     frames: int | None = None
     shimmer_px: float | None = None
-    """What ``offset_error_px`` was derived from (None: it was given)."""
+    shimmer_corr_px: float | None = None
+    """What ``offset_error_px`` was derived from (None: it was given; a None correlation
+    length: the 1 % of the width it was measured at)."""
 
     @classmethod
     def from_profile(
@@ -209,13 +250,17 @@ class ErrorModel:
         offset_error_px: float | None = None,
         frames: int = 1,
         shimmer_px: float = SHIMMER_PX,
+        shimmer_corr_px: float | None = None,
     ) -> ErrorModel:
         """The model for a profile (its focal length, tolerances, baselines and lens).
         The offset's error is ``offset_error_px`` where given, else what ``frames`` per
-        position under ``shimmer_px`` of shimmer leave (:func:`expected_offset_error_px`)."""
+        position under ``shimmer_px`` of shimmer correlated over ``shimmer_corr_px``
+        leave (:func:`expected_offset_error_px`)."""
         derived = offset_error_px is None
         if offset_error_px is None:
-            offset_error_px = expected_offset_error_px(profile.image_size, frames, shimmer_px)
+            offset_error_px = expected_offset_error_px(
+                profile.image_size, frames, shimmer_px, shimmer_corr_px
+            )
         corner = lens_corner_error_px(profile)
         return cls(
             focal_px=profile.focal_px,
@@ -228,6 +273,7 @@ class ErrorModel:
             lens_error_px=lens_disparity_error_px(corner, profile.focal_px, profile.image_size),
             frames=frames if derived else None,
             shimmer_px=shimmer_px if derived else None,
+            shimmer_corr_px=shimmer_corr_px if derived else None,
         )
 
     @property
@@ -466,6 +512,7 @@ def check_rig(
     capture_findings: Sequence[Finding] = (),
     frames: int = 1,
     shimmer_px: float = SHIMMER_PX,
+    shimmer_corr_px: float | None = None,
 ) -> RigCheck:
     """Run the geometry check and the error budget; ``capture_findings`` (from
     :func:`rigkit.capture.checks.check_capture`, when frames were given) are appended
@@ -474,7 +521,7 @@ def check_rig(
         if not value > 0:
             raise InputError(f"ranges must be > 0 m, got {value:g}")
     model = ErrorModel.from_profile(
-        profile, disparity_error_px, offset_error_px, frames, shimmer_px
+        profile, disparity_error_px, offset_error_px, frames, shimmer_px, shimmer_corr_px
     )
     geometry = tuple(geometry_at(profile, z, disparity_error_px) for z in ranges_m)
     findings = geometry_warnings(profile, geometry, model)
@@ -516,6 +563,7 @@ def check_to_dict(check: RigCheck) -> dict[str, Any]:
             "offset_error_px": model.offset_error_px,
             "offset_frames_per_position": model.frames,
             "offset_shimmer_px": model.shimmer_px,
+            "offset_shimmer_corr_px": model.shimmer_corr_px,
             "lens_error_px": model.lens_error_px,
             "focal_tolerance": model.focal_tolerance,
             "relative_rotation_deg": RELATIVE_ROTATION_DEG,

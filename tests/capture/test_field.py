@@ -4,6 +4,7 @@ known similarity and parallax, magnification from a known range, sessions in tmp
 from __future__ import annotations
 
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -138,6 +139,9 @@ def test_a_second_frame_joins_the_burst(tmp_path: Path) -> None:
     assert [Path(f.file).name for f in frames_at(load_session(session.path), "left")] == \
         ["one.png", "two.png"]
     assert first.is_file() and second.is_file()  # originals left in place
+    # Two unrelated views: the shimmer cannot be measured, which is said, not failed.
+    shimmer = next(c for c in onsite_checks(session, "left") if c.code == "shimmer")
+    assert shimmer.ok and shimmer.message.startswith("heat shimmer not measured: left frames")
 
 
 def test_a_retake_after_a_failed_check_replaces_the_position(tmp_path: Path) -> None:
@@ -152,6 +156,35 @@ def test_a_retake_after_a_failed_check_replaces_the_position(tmp_path: Path) -> 
     session = add_position_frame(session, "right", retake)
     assert [Path(f.file).name for f in frames_at(session, "right")] == ["c.png"]
     assert (session.path / "raw" / "b.png").is_file()  # nothing captured is lost
+
+
+def _shimmered(scene: np.ndarray, rms_px: float, seed: int) -> np.ndarray:
+    """``scene`` through heat shimmer (correlated over 24 px) drawn from ``seed``."""
+    from rigkit.synth.render import shimmer_field
+
+    dx, dy = shimmer_field(scene.shape, rms_px, 24.0, np.random.default_rng(seed))
+    v, u = np.mgrid[0 : scene.shape[0], 0 : scene.shape[1]].astype(np.float32)
+    return cv2.remap(scene, u + dx, v + dy, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+
+
+def test_a_burst_measures_the_shimmer_and_the_frames_it_calls_for(tmp_path: Path) -> None:
+    session = create_session(tmp_path / "s", SYNTHETIC)  # nominal range 300 m
+    scene = texture(2048, 1536, seed=4)
+    first, second = (_png(tmp_path / f"{k}.png", _shimmered(scene, 0.15, k)) for k in (1, 2))
+    session = add_position_frame(session, "left", first)
+    assert "shimmer" not in {c.code for c in onsite_checks(session, "left")}
+    session = add_position_frame(session, "left", second)
+    check = next(c for c in onsite_checks(session, "left") if c.code == "shimmer")
+    assert check.ok  # the air's doing, not the frame's: never a retake
+    found = re.fullmatch(r"heat shimmer (\S+) px RMS \(left frames 1 and 2\): take (\d+) "
+                         r"frames per position to keep the offset within 0.3 % of depth at "
+                         r"300 m \(9 times in 10\)", check.message)
+    assert found, check.message
+    assert float(found[1]) == pytest.approx(0.15, rel=0.2)
+    # By hand at 2048 px wide: 130 px of disparity at 300 m, 0.24 px of offset sigma
+    # allowed (0.3 % nine times in ten), 0.16 px of it taken by the floor; 0.15 px of
+    # shimmer over 24 px (1.2x the 1 % of the width measured) calls for 9 frames.
+    assert 7 <= int(found[2]) <= 14
 
 
 def test_exif_check_names_the_setting_that_changed(tmp_path: Path) -> None:

@@ -37,6 +37,8 @@ def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
         (["--frames", "5"], 0.527, "3,441 m"),
         # No shimmer: what the principal points leave.
         (["--shimmer-px", "0"], 0.37, "3,961 m"),
+        # Shimmer correlated over 2 % of the width: its share doubles, hypot(0.37, 1.68).
+        (["--shimmer-corr-px", "92.16"], 1.720, None),
     ],
 )
 def test_cli_offset_from_frames_and_shimmer(
@@ -51,6 +53,17 @@ def test_cli_offset_from_frames_and_shimmer(
     assumptions = json.loads(capsys.readouterr().out)["assumptions"]
     assert assumptions["offset_error_px"] == pytest.approx(offset_px, abs=1e-3)
     assert assumptions["offset_frames_per_position"] == (5 if "5" in args else 1)
+
+
+def test_cli_reports_the_correlation_length_it_budgeted_for(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["rig", "check", str(P1000), "--shimmer-corr-px", "51"]) == 0
+    assert "0.3 px RMS of heat shimmer over 51 px" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        main(["rig", "check", str(P1000), "--shimmer-corr-px", "0"])
+    assert exc.value.code == 2
+    assert "--shimmer-corr-px: must be > 0, got 0" in capsys.readouterr().err
 
 
 def test_cli_rejects_no_frames(capsys: pytest.CaptureFixture[str]) -> None:

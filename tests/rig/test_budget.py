@@ -22,6 +22,7 @@ from rigkit.rig.budget import (
     depth_error_from_disparity,
     disparity_px,
     expected_offset_error_px,
+    frames_for_offset,
     range_reaching,
     triangulation_angle_deg,
 )
@@ -137,6 +138,34 @@ def test_offset_error_from_frames_and_shimmer() -> None:
     assert expected_offset_error_px((1152, 864), shimmer_px=0.0) == pytest.approx(0.0925)
     with pytest.raises(InputError, match="frames per position must be >= 1, got 0"):
         expected_offset_error_px(full, frames=0)
+
+
+def test_offset_error_grows_with_the_shimmers_correlation_length() -> None:
+    full = (4608, 3456)
+    # Measured at 1 % of the width (46 px); twice the length, half as many patches
+    # per side: twice the shimmer's share (benchmarks/offset_bound.py: x1.9).
+    assert expected_offset_error_px(full, shimmer_corr_px=46.08) == pytest.approx(
+        expected_offset_error_px(full))
+    assert expected_offset_error_px(full, shimmer_corr_px=92.16) == pytest.approx(
+        math.hypot(0.37, 1.68))
+    with pytest.raises(InputError, match="correlation must be > 0 px"):
+        expected_offset_error_px(full, shimmer_corr_px=0.0)
+
+
+def test_frames_for_offset_is_the_shortest_burst_within_the_bar_nine_times_in_ten() -> None:
+    full = (4608, 3456)
+    at_300m = 293.0  # px of disparity at 300 m for the field scenes' f C_lr
+    # 0.3 % of it is 0.88 px, 1.645 sigma: sigma <= 0.535 px. One frame at 0.3 px of
+    # shimmer leaves 0.92 px; five 0.53 px (measured on bursts of five: 0.46 px).
+    assert frames_for_offset(full, at_300m, 0.3) == 5
+    assert frames_for_offset(full, at_300m, 0.0) == 1
+    n = frames_for_offset(full, at_300m, 0.6)
+    assert n is not None
+    limit = 0.003 * at_300m / 1.645
+    assert expected_offset_error_px(full, n, 0.6) <= limit
+    assert expected_offset_error_px(full, n - 1, 0.6) > limit
+    # Where the floor alone (0.37 px) is beyond that, no burst helps.
+    assert frames_for_offset(full, 176.0, 0.3) is None  # 500 m
 
 
 def test_the_profile_model_budgets_one_frame_unless_told(tmp_path: Path) -> None:

@@ -1,0 +1,164 @@
+"""Heat shimmer measured from two frames of one camera position.
+
+Two frames of a burst differ by the tripod's sway, a global shift and turn, and by
+the shimmer of each frame: a smooth random displacement field, drawn afresh every few
+milliseconds. Points tracked from the first frame to the other, less a global affine
+map, move by ``r(p) = s_2(p) - s_1(p) + e``, where ``e`` is the tracker's own error.
+Its semivariogram, per axis,
+
+    gamma(h) = 1/2 E[(r(p + h) - r(p))^2] = n^2 + 2 s^2 (1 - exp(-h^2 / (4 c^2))),
+
+rises from the tracker's noise ``n`` between neighbouring points to the shimmer's
+variance, twice one frame's ``s^2``, between points farther apart than its patches.
+Fitting it (Matheron's variogram, as in geostatistics) separates the shimmer from the
+tracker without knowing either. ``c`` is the Gaussian correlation length the
+synthetic scenes draw their shimmer with (:func:`rigkit.synth.render.shimmer_field`);
+real turbulence has a longer tail, so for it ``c`` is the best Gaussian match.
+
+The measurement runs on a central crop at full resolution: shimmer of a few tenths of
+a pixel would be lost in a reduced image, and its statistics are the same across the
+frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.distance import pdist
+
+from rigkit.errors import PipelineError
+
+CROP_PX = 2048  # side of the central crop measured on, full-resolution px
+MAX_POINTS = 2000  # points tracked between the frames
+FB_MAX_PX = 0.1  # forward-backward disagreement above which a track is dropped
+MIN_POINTS = 100
+BIN_PX = 8.0  # distance bins of the semivariogram
+MIN_SHIMMER_PX = 0.02  # below this, no correlation length is reported
+
+
+@dataclass(frozen=True)
+class Shimmer:
+    """Heat shimmer of one frame, measured from two: ``rms_px`` RMS image displacement
+    per axis (px); ``corr_px`` its correlation length (px, the sigma of a Gaussian
+    correlation exp(-h^2 / 4 c^2); NaN where there is too little shimmer to tell);
+    ``tracker_px`` the tracking noise per axis the fit separated from it; ``points``
+    tracked points it rests on."""
+
+    rms_px: float
+    corr_px: float
+    tracker_px: float
+    points: int
+
+
+def measure_shimmer(first: np.ndarray, other: np.ndarray, what: str = "burst") -> Shimmer:
+    """:class:`Shimmer` from two (H, W) float32 grey frames of one camera position at
+    full resolution (``what`` names them in errors). Raises PipelineError where the
+    frames have too little texture to track or do not show the same view."""
+    if first.shape != other.shape:
+        raise PipelineError(f"{what}: frames of different sizes")
+    a, b = _crop(first), _crop(other)
+    start, moved = _tracks(a, b, what)
+    points, residual = _less_global_map(start, moved, what)
+    distance, gamma = pdist(points), 0.25 * pdist(residual, "sqeuclidean")
+    # (1/4 of the squared distance: half the mean over the two axes)
+    return _fit(distance, gamma, len(points), max_distance=min(a.shape) / 3)
+
+
+def _crop(image: np.ndarray) -> np.ndarray:
+    h, w = image.shape
+    side_y, side_x = min(CROP_PX, h), min(CROP_PX, w)
+    y0, x0 = (h - side_y) // 2, (w - side_x) // 2
+    return np.clip(np.rint(image[y0 : y0 + side_y, x0 : x0 + side_x]), 0, 255).astype(np.uint8)
+
+
+def _tracks(a: np.ndarray, b: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 2) float64 points of ``a`` and where they are in ``b``, checked both ways."""
+    spacing = max(4.0, 0.7 * math.sqrt(a.size / MAX_POINTS))
+    found = cv2.goodFeaturesToTrack(a, MAX_POINTS, 0.005, spacing, blockSize=5)
+    if found is None or len(found) < MIN_POINTS:
+        raise PipelineError(f"{what}: too little texture to measure heat shimmer")
+    p0 = found.reshape(-1, 1, 2).astype(np.float32)
+    (dx, dy), _ = cv2.phaseCorrelate(a.astype(np.float32), b.astype(np.float32))
+    p1, st1 = _follow(a, b, p0, p0 + np.array([dx, dy], np.float32))
+    back, st2 = _follow(b, a, p1, p0.copy())
+    h, w = a.shape
+    ok = (st1.ravel() == 1) & (st2.ravel() == 1)
+    ok &= np.linalg.norm((back - p0).reshape(-1, 2), axis=1) < FB_MAX_PX
+    q = p1.reshape(-1, 2)
+    ok &= (q[:, 0] > 10) & (q[:, 0] < w - 11) & (q[:, 1] > 10) & (q[:, 1] < h - 11)
+    if ok.sum() < MIN_POINTS:
+        raise PipelineError(
+            f"{what}: only {int(ok.sum())} points could be followed from one frame to the "
+            f"next (need {MIN_POINTS}); are both frames of the same view?"
+        )
+    return p0.reshape(-1, 2)[ok].astype(np.float64), q[ok].astype(np.float64)
+
+
+def _follow(
+    a: np.ndarray, b: np.ndarray, points: np.ndarray, guess: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pyramidal Lucas-Kanade of (N, 1, 2) float32 ``points`` from ``a`` to ``b``,
+    starting at ``guess``: (where they are in ``b``, status)."""
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.005)
+    moved, status, _ = cv2.calcOpticalFlowPyrLK(
+        a, b, points, guess, winSize=(21, 21), maxLevel=3,
+        criteria=crit, flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+    )
+    return moved, status
+
+
+def _less_global_map(
+    start: np.ndarray, moved: np.ndarray, what: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """The points and what is left of each one's move, (N, 2) each, after a global
+    affine map, the tripod's sway: fitted robustly, then by least squares on the points
+    it explains (the others, mistracked, are dropped)."""
+    A, _ = cv2.estimateAffine2D(start, moved, method=cv2.LMEDS)
+    if A is None:
+        raise PipelineError(f"{what}: the frames do not show the same view")
+    size = np.linalg.norm(moved - (start @ A[:, :2].T + A[:, 2]), axis=1)
+    keep = size < 5 * 1.4826 * float(np.median(size)) + 1e-9
+    if keep.sum() < MIN_POINTS:
+        raise PipelineError(f"{what}: the frames do not show the same view")
+    X = np.hstack([start[keep], np.ones((int(keep.sum()), 1))])
+    coef, *_ = np.linalg.lstsq(X, moved[keep], rcond=None)
+    return start[keep], moved[keep] - X @ coef
+
+
+def _fit(
+    distance: np.ndarray, gamma: np.ndarray, points: int, max_distance: float
+) -> Shimmer:
+    """The model of the module docstring fitted to the binned semivariogram, each bin
+    weighted by its number of pairs."""
+    edges = np.arange(0.0, max_distance + BIN_PX, BIN_PX)
+    which = np.digitize(distance, edges) - 1
+    inside = (which >= 0) & (which < len(edges) - 1)
+    counts = np.bincount(which[inside], minlength=len(edges) - 1)
+    sums = np.bincount(which[inside], gamma[inside], minlength=len(edges) - 1)
+    used = counts > 0
+    h = 0.5 * (edges[:-1] + edges[1:])[used]
+    g = sums[used] / counts[used]
+    weight = np.sqrt(counts[used])
+
+    def model(p: np.ndarray) -> np.ndarray:
+        nugget, var, corr = p
+        return nugget + var * (1 - np.exp(-(h**2) / (4 * corr**2)))
+
+    sill = float(np.mean(g[-max(1, len(g) // 4) :]))
+    start = np.array([max(float(g[0]), 1e-6), max(sill - float(g[0]), 1e-6), max_distance / 8])
+    fit = least_squares(
+        lambda p: weight * (model(p) - g), start,
+        bounds=([0.0, 0.0, 1.0], [np.inf, np.inf, max_distance]),
+    )
+    nugget, var, corr = fit.x
+    rms = math.sqrt(var / 2)
+    return Shimmer(
+        rms_px=rms,
+        corr_px=float(corr) if rms >= MIN_SHIMMER_PX else math.nan,
+        tracker_px=math.sqrt(nugget),
+        points=points,
+    )
