@@ -27,7 +27,7 @@ from rigkit.batch.compare import compare_target
 from rigkit.capture.actions import frame_problems
 from rigkit.capture.checks import session_warnings
 from rigkit.capture.comparisons import LOG_NAME, Comparison, append_rows, csv_text
-from rigkit.capture.frames import load_frames
+from rigkit.capture.frames import load_frames, session_shimmer
 from rigkit.capture.session import (
     POSITIONS,
     RESULTS_DIR,
@@ -41,6 +41,7 @@ from rigkit.core.files import Content, replace_folder
 from rigkit.errors import InputError
 from rigkit.pipeline import estimate_depth
 from rigkit.reporting.previews import preview_set
+from rigkit.rig.budget import burst_warning
 
 LOCK_FILE = ".lock"
 
@@ -136,6 +137,12 @@ def _process_locked(
     offset_warning = result.offset_warning()
     if offset_warning:
         warnings = (*warnings, offset_warning)
+    shimmer = session_shimmer(session)
+    if shimmer is not None:
+        measured, where = shimmer
+        short = burst_warning(measured, where, (left.shape[1], left.shape[0]), rig.focal_px,
+                              rig.baseline_lr_m, result.median_depth_m, session.burst_length)
+        warnings = (*warnings, short) if short else warnings
     report("writing results", 0.92)
     meta = {
         "run_id": run_id,
@@ -146,6 +153,7 @@ def _process_locked(
                 "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
                 "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},
         "warnings": list(warnings),
+        "shimmer": {"frames": shimmer[1], **shimmer[0].as_dict()} if shimmer else None,
         **result.diagnostics(),
     }
     files: dict[str, Content] = {

@@ -44,7 +44,7 @@ from rigkit.errors import RigkitError
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.rangefinder.framing import Reading, escape_bytes
-from rigkit.rig.budget import frames_for_offset
+from rigkit.rig.budget import burst_advice
 from rigkit.rig.profile import RigProfile
 
 CHECK_SIDE_PX = 1024
@@ -336,21 +336,15 @@ def shimmer_check(session: Session, position: str) -> Check | None:
         shimmer = measure_shimmer(first, full_image(session, frames[-1]), where)
     except RigkitError as exc:
         return Check("shimmer", True, f"heat shimmer not measured: {exc}")
-    text = f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where})"
     profile = session.rig()
     z = profile.nominal_range_m
     if z is None:
-        return Check("shimmer", True, f"{text}; a nominal range in the rig profile "
-                                      "would give the burst length to take")
+        return Check("shimmer", True, f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where}); "
+                                      "a nominal range in the rig profile would give the "
+                                      "burst length to take")
     size = (first.shape[1], first.shape[0])
     disparity = profile.focal_px * size[0] / profile.image_size[0] * profile.baseline_lr.value_m / z
-    corr = shimmer.corr_px if math.isfinite(shimmer.corr_px) else None
-    need = frames_for_offset(size, disparity, shimmer.rms_px, corr)
-    if need is None:
-        return Check("shimmer", True, f"{text}; at {z:g} m no burst keeps the offset "
-                                      "within 0.3 % of depth")
-    return Check("shimmer", True, f"{text}: take {need} frames per position to keep the "
-                                  f"offset within 0.3 % of depth at {z:g} m (9 times in 10)")
+    return Check("shimmer", True, burst_advice(shimmer, where, size, disparity, z)[0])
 
 
 def onsite_checks(session: Session, position: str) -> list[Check]:

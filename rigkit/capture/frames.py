@@ -1,5 +1,6 @@
 """A session's three positions as the pipeline's grey images (RAW or ordinary image
-files; a position's burst median-stacked into one)."""
+files; a position's burst median-stacked into one), and the heat shimmer its bursts
+show."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Session
 from rigkit.errors import InputError
 from rigkit.pipeline.burst import stack_burst
+from rigkit.pipeline.shimmer import Shimmer, burst_shimmer
 
 
 def load_frames(session: Session) -> list[np.ndarray]:
@@ -41,3 +43,16 @@ def _linear_position(session: Session, position: str) -> np.ndarray:
         load_linear_grey(session.path / f.file, cache, f.sha256) for f in session.bursts[position]
     ]
     return stack_burst(frames, f"{session.path}: {position} burst")
+
+
+def session_shimmer(session: Session) -> tuple[Shimmer, str] | None:
+    """The heat shimmer of the first position with a burst, between its first two frames
+    (:func:`rigkit.pipeline.shimmer.burst_shimmer`); None for single frames."""
+    for position in POSITIONS:
+        burst = session.bursts[position][:2]
+        if len(burst) == 2:
+            cache = session.path / DERIVED_DIR
+            greys = [load_linear_grey(session.path / f.file, cache, f.sha256) for f in burst]
+            linear = is_raw(session.path / burst[0].file)
+            return burst_shimmer(to_pipeline(greys, linear=linear), position)
+    return None

@@ -8,6 +8,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+POSITIONS = ("left", "right", "back")
+
 EXAMPLE = """example:
   rigkit depth left.png right.png back.png --focal-px 43963 --baseline-lr 2 --baseline-lb 2 \\
       --out out/depth.npy --preview
@@ -62,12 +64,17 @@ def _frames(text: str) -> list[Path]:
     return [Path(p) for p in text.split(",") if p]
 
 
-def load_position(paths: list[Path], position: str):  # -> np.ndarray
-    """The image of one position: the file, or its burst stacked."""
+def load_position(paths: list[Path], position: str, measure: bool):
+    """The image of one position: the file, or its burst stacked; and, if ``measure``,
+    the heat shimmer between the burst's first two frames (None for a single frame;
+    :func:`rigkit.pipeline.shimmer.burst_shimmer`)."""
     from rigkit.pipeline.burst import stack_burst
     from rigkit.pipeline.images import load_grey
+    from rigkit.pipeline.shimmer import burst_shimmer
 
-    return stack_burst([load_grey(p) for p in paths], f"{position} burst")
+    frames = [load_grey(p) for p in paths]
+    shimmer = burst_shimmer(frames, position) if measure else None
+    return stack_burst(frames, f"{position} burst"), shimmer
 
 
 def rig_geometry(args: argparse.Namespace):  # -> (RigGeometry, PipelineSettings)
@@ -118,11 +125,17 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.errors import InputError
     from rigkit.pipeline import estimate_depth
     from rigkit.reporting.previews import colorize, depth_range
+    from rigkit.rig.budget import burst_warning
 
     rig, settings = rig_geometry(args)
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
-    left, right, back = (load_position(getattr(args, p), p) for p in ("left", "right", "back"))
+    images, shimmer = [], None
+    for position in POSITIONS:
+        image, found = load_position(getattr(args, position), position, shimmer is None)
+        images.append(image)
+        shimmer = shimmer or found
+    left, right, back = images
     if args.lensfun:
         rig = replace(rig, distortion=_lensfun(args.lensfun, rig.focal_px, left.shape))
     if args.fixed_lens:
@@ -149,6 +162,7 @@ def run(args: argparse.Namespace) -> int:
             "baseline_lb_m": rig.baseline_lb_m,
             "distortion_k1_k2_p1_p2_k3": list(rig.distortion),
         },
+        "shimmer": {"frames": shimmer[1], **shimmer[0].as_dict()} if shimmer else None,
         **result.diagnostics(),
     }
     files[f"{stem}.json"] = json.dumps(meta, indent=2)
@@ -170,8 +184,14 @@ def run(args: argparse.Namespace) -> int:
         f"offset {a.offset_px:.2f} +- {a.offset_sigma_px:.2f} px{fitted}, "
         f"{sum(result.timings_s.values()):.1f} s)"
     )
-    warning = result.offset_warning()
-    if warning:
+    warnings = [result.offset_warning()]
+    if shimmer is not None:
+        measured, where = shimmer
+        frames = min(len(getattr(args, p)) for p in POSITIONS)
+        warnings.append(burst_warning(measured, where, (left.shape[1], left.shape[0]),
+                                      rig.focal_px, rig.baseline_lr_m, result.median_depth_m,
+                                      frames))
+    for warning in filter(None, warnings):
         print(f"warning: {warning}", file=sys.stderr)
     return 0
 

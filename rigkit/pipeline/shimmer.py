@@ -23,6 +23,7 @@ frame.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -43,8 +44,9 @@ MIN_SHIMMER_PX = 0.02  # below this, no correlation length is reported
 @dataclass(frozen=True)
 class Shimmer:
     """Heat shimmer of one frame, measured from two: ``rms_px`` RMS image displacement
-    per axis (px); ``corr_px`` its correlation length (px, the sigma of a Gaussian
-    correlation exp(-h^2 / 4 c^2); NaN where there is too little shimmer to tell);
+    per axis (px); ``corr_px`` its correlation length ``c`` (px: the correlation
+    between points ``h`` apart is exp(-h^2 / 4 c^2), as for white noise blurred by a
+    Gaussian of sigma ``c``; NaN where there is too little shimmer to tell);
     ``tracker_px`` the tracking noise per axis the fit separated from it; ``points``
     tracked points it rests on."""
 
@@ -52,6 +54,12 @@ class Shimmer:
     corr_px: float
     tracker_px: float
     points: int
+
+    def as_dict(self) -> dict[str, float | int | None]:
+        """Plain data for depth.json (an unknown correlation length as null)."""
+        corr = self.corr_px if math.isfinite(self.corr_px) else None
+        return {"rms_px": self.rms_px, "corr_px": corr, "tracker_px": self.tracker_px,
+                "points": self.points}
 
 
 def measure_shimmer(first: np.ndarray, other: np.ndarray, what: str = "burst") -> Shimmer:
@@ -66,6 +74,21 @@ def measure_shimmer(first: np.ndarray, other: np.ndarray, what: str = "burst") -
     distance, gamma = pdist(points), 0.25 * pdist(residual, "sqeuclidean")
     # (1/4 of the squared distance: half the mean over the two axes)
     return _fit(distance, gamma, len(points), max_distance=min(a.shape) / 3)
+
+
+def burst_shimmer(
+    frames: Sequence[np.ndarray], position: str
+) -> tuple[Shimmer, str] | None:
+    """:func:`measure_shimmer` between the first two of a position's ``frames`` and which
+    they were ("left frames 1 and 2"); None for a single frame, or where the frames
+    cannot be tracked (the field checks say why as the frames are taken)."""
+    if len(frames) < 2:
+        return None
+    where = f"{position} frames 1 and 2"
+    try:
+        return measure_shimmer(frames[0], frames[1], where), where
+    except PipelineError:
+        return None
 
 
 def _crop(image: np.ndarray) -> np.ndarray:

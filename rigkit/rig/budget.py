@@ -37,6 +37,7 @@ from rigkit.errors import InputError
 from rigkit.geometry import distort
 from rigkit.pipeline.estimate import OFFSET_WARNING_FRACTION
 from rigkit.pipeline.settings import PipelineSettings
+from rigkit.pipeline.shimmer import Shimmer
 from rigkit.rig.optics import fov_deg
 from rigkit.rig.profile import Baseline, RigProfile, rig_to_dict
 
@@ -105,12 +106,12 @@ def expected_offset_error_px(
         raise InputError(f"frames per position must be >= 1, got {frames}")
     if not shimmer_px >= 0:
         raise InputError(f"shimmer must be >= 0 px, got {shimmer_px:g}")
-    patches = 1.0
+    patch_ratio = 1.0  # the shimmer's patches against those it was measured under
     if shimmer_corr_px is not None:
         if not shimmer_corr_px > 0:
             raise InputError(f"shimmer correlation must be > 0 px, got {shimmer_corr_px:g}")
-        patches = shimmer_corr_px / (SHIMMER_CORR * image_size[0])
-    shimmer = OFFSET_PER_SHIMMER_PX * shimmer_px * patches / math.sqrt(frames)
+        patch_ratio = shimmer_corr_px / (SHIMMER_CORR * image_size[0])
+    shimmer = OFFSET_PER_SHIMMER_PX * shimmer_px * patch_ratio / math.sqrt(frames)
     return math.hypot(OFFSET_FLOOR_PX * _reference_scale(image_size), shimmer)
 
 
@@ -131,6 +132,40 @@ def frames_for_offset(
         if expected_offset_error_px(image_size, frames, shimmer_px, shimmer_corr_px) <= limit:
             return frames
     return None
+
+
+def burst_advice(
+    shimmer: Shimmer, where: str, image_size: tuple[int, int], disparity_px: float,
+    range_m: float,
+) -> tuple[str, int | None]:
+    """One line on the ``shimmer`` measured from ``where`` (e.g. "left frames 1 and 2")
+    and the burst it calls for at ``range_m`` (disparity ``disparity_px`` there, images
+    of ``image_size``): (the line, :func:`frames_for_offset`'s answer)."""
+    text = f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where})"
+    corr = shimmer.corr_px if math.isfinite(shimmer.corr_px) else None
+    need = frames_for_offset(image_size, disparity_px, shimmer.rms_px, corr)
+    bar = f"{100 * OFFSET_WARNING_FRACTION:g} % of depth"
+    if need is None:
+        return f"{text}; at {range_m:.0f} m no burst keeps the offset within {bar}", None
+    return (f"{text}: take {need} frames per position to keep the offset within {bar} at "
+            f"{range_m:.0f} m (9 times in 10)"), need
+
+
+def burst_warning(
+    shimmer: Shimmer, where: str, image_size: tuple[int, int], focal_px: float,
+    baseline_lr_m: float, depth_m: float, frames: int,
+) -> str | None:
+    """For a processed capture of ``frames`` per position whose median depth is
+    ``depth_m``: the :func:`burst_advice` line where its burst is shorter than the
+    measured ``shimmer`` calls for, else None (also where there is no depth)."""
+    if not depth_m > 0:
+        return None
+    text, need = burst_advice(
+        shimmer, where, image_size, focal_px * baseline_lr_m / depth_m, depth_m
+    )
+    if need is not None and need <= frames:
+        return None
+    return f"{text}; this capture has {frames}"
 
 
 def _reference_scale(image_size: tuple[int, int]) -> float:

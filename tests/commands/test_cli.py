@@ -75,7 +75,7 @@ def test_help_lists_every_command(capsys):
         assert cmd in out
 
 
-def test_depth_takes_bursts_and_a_distortion(scene_dir, truth, tmp_path):
+def test_depth_takes_bursts_and_a_distortion(scene_dir, truth, tmp_path, capsys):
     # A burst of two frames per position (the second a copy) and a zero distortion;
     # both are recorded in the sidecar.
     frames = [scene_dir / f"{v}.png" for v in ("left", "right", "back")]
@@ -91,6 +91,10 @@ def test_depth_takes_bursts_and_a_distortion(scene_dir, truth, tmp_path):
     # Fitted from the views by default: the lens the depth used is the fitted one.
     assert meta["lens_fit"]["start_k1_k2_p1_p2_k3"] == [0.0] * 5
     assert meta["distortion_k1_k2_p1_p2_k3"] == meta["lens_fit"]["k1_k2_p1_p2_k3"]
+    # The same frame twice: still air between them, so no burst is too short.
+    assert meta["shimmer"]["frames"] == "left frames 1 and 2"
+    assert meta["shimmer"]["rms_px"] < 0.03
+    assert "heat shimmer" not in capsys.readouterr().err
 
 
 def test_depth_with_a_lensfun_profile_held_fixed(scene_dir, truth, tmp_path):

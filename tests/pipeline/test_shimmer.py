@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigkit.errors import PipelineError
-from rigkit.pipeline.shimmer import measure_shimmer
+from rigkit.pipeline.shimmer import burst_shimmer, measure_shimmer
 from rigkit.synth.render import shimmer_field
 
 SIZE = (1024, 1280)  # (H, W)
@@ -68,3 +68,14 @@ def test_a_blank_frame_has_nothing_to_measure() -> None:
 def test_frames_of_different_views_are_refused() -> None:
     with pytest.raises(PipelineError, match="same view"):
         measure_shimmer(_texture(3), _texture(4))
+
+
+def test_a_burst_is_measured_on_its_first_two_frames() -> None:
+    rng = np.random.default_rng(6)
+    scene = _texture(5)
+    frames = [_frame(scene, 0.3, rng) for _ in range(3)]
+    found = burst_shimmer(frames, "back")
+    assert found is not None and found[1] == "back frames 1 and 2"
+    assert found[0] == measure_shimmer(frames[0], frames[1])
+    assert burst_shimmer(frames[:1], "back") is None  # one frame: nothing to compare
+    assert burst_shimmer([_texture(3), _texture(4)], "back") is None  # not measurable

@@ -18,6 +18,7 @@ from rigkit.rig.budget import (
     anchor_error_fraction,
     back_shift_px,
     budget_row,
+    burst_warning,
     check_rig,
     depth_error_from_disparity,
     disparity_px,
@@ -166,6 +167,22 @@ def test_frames_for_offset_is_the_shortest_burst_within_the_bar_nine_times_in_te
     assert expected_offset_error_px(full, n - 1, 0.6) > limit
     # Where the floor alone (0.37 px) is beyond that, no burst helps.
     assert frames_for_offset(full, 176.0, 0.3) is None  # 500 m
+
+
+def test_burst_warning_only_for_a_burst_shorter_than_the_shimmer_calls_for() -> None:
+    from rigkit.pipeline.shimmer import Shimmer
+
+    full, f = (4608, 3456), 43962.9
+    shimmer = Shimmer(rms_px=0.3, corr_px=46.08, tracker_px=0.05, points=1900)
+    # At 300 m: 5 frames per position (above).
+    assert burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, 300.0, 5) is None
+    text = burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, 300.0, 3)
+    assert text == ("heat shimmer 0.30 px RMS (left frames 1 and 2): take 5 frames per "
+                    "position to keep the offset within 0.3 % of depth at 300 m (9 times in "
+                    "10); this capture has 3")
+    far = burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, 500.0, 64)
+    assert far is not None and "at 500 m no burst keeps the offset within 0.3 %" in far
+    assert burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, float("nan"), 1) is None
 
 
 def test_the_profile_model_budgets_one_frame_unless_told(tmp_path: Path) -> None:
