@@ -16,6 +16,9 @@ disparity offset (rigkit.synth.bound defines the two figures):
   median true disparity f C_lr / z); ``P(bound)``: the chance that an offset error of
   spread ``bound`` stays within the bar.
 
+``--corr-px C`` computes the figures for shimmer of another correlation length on the
+same scenes (the error and the reported sigma stay the rendered shimmer's).
+
 The summary gives how many scenes meet the bar, how many are expected to with the
 pipeline's estimator and with the best one, and the chance that all of them do.
 """
@@ -25,6 +28,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +39,7 @@ from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import load_scene
-from rigkit.synth.bound import offset_bound
+from rigkit.synth.bound import TRACKER_PX, offset_bound
 from rigkit.synth.evaluate import offset_error_px, visible_in_right
 
 BIAS_BAR = 0.003  # the field issue's |median depth bias|
@@ -46,13 +50,17 @@ def within(bar: float, sigma: float) -> float:
     return math.erf(bar / (sigma * math.sqrt(2)))
 
 
-def analyse(scene_dir: Path, step_px: float | None) -> dict[str, float]:
+def analyse(
+    scene_dir: Path, step_px: float | None, corr_px: float | None, tracker_px: float
+) -> dict[str, float]:
     truth = load_scene(scene_dir)
+    if corr_px is not None:  # the same scene under shimmer of another correlation length
+        truth = replace(truth, params=replace(truth.params, shimmer_corr_px=corr_px))
     left, right, back = (load_grey(truth.image_path(v)) for v in ("left", "right", "back"))
     rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
     result = estimate_depth(left, right, back, rig)
     matches = match_views(left, back, "left/back")
-    bound = offset_bound(truth, result, matches.left, step_px)
+    bound = offset_bound(truth, result, matches.left, step_px, tracker_px)
     z = truth.depth("left")[visible_in_right(truth)]
     bar = BIAS_BAR * rig.focal_px * rig.baseline_lr_m / float(np.median(z))
     return {
@@ -84,12 +92,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("scenes", nargs="+", type=Path)
     ap.add_argument("--step-px", type=float, default=None,
                     help="the dense grid's spacing (default: 0.7 shimmer correlation lengths)")
+    ap.add_argument("--tracker-px", type=float, default=TRACKER_PX,
+                    help=f"the tracker's own error per axis (default {TRACKER_PX:g})")
+    ap.add_argument("--corr-px", type=float, default=None,
+                    help="bound under shimmer of this correlation length instead of the "
+                    "scene's (the pipeline's error is still the rendered shimmer's)")
     args = ap.parse_args(argv)
     cols = ("error", "reported", "estimator", "surface", "bound", "bar", "P(bound)")
     rows, names = [], []
     for scene in args.scenes:
         try:
-            row = analyse(scene, args.step_px)
+            row = analyse(scene, args.step_px, args.corr_px, args.tracker_px)
         except RigkitError as exc:
             print(f"{scene.name}: {exc}", file=sys.stderr)
             continue
