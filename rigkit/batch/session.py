@@ -27,7 +27,7 @@ from rigkit.batch.compare import compare_target
 from rigkit.capture.actions import frame_problems
 from rigkit.capture.checks import session_warnings
 from rigkit.capture.comparisons import LOG_NAME, Comparison, append_rows, csv_text
-from rigkit.capture.frames import load_frames, session_shimmer
+from rigkit.capture.frames import load_frames
 from rigkit.capture.session import (
     POSITIONS,
     RESULTS_DIR,
@@ -123,7 +123,7 @@ def _process_locked(
     profile = session.rig()
     warnings = session_warnings(session, force)
     report("reading frames", 0.02)
-    left, right, back = load_frames(session)
+    (left, right, back), shimmer = load_frames(session)
     report("reading frames", 0.1)
     rig = profile.geometry()
     result = estimate_depth(
@@ -137,7 +137,6 @@ def _process_locked(
     offset_warning = result.offset_warning()
     if offset_warning:
         warnings = (*warnings, offset_warning)
-    shimmer = session_shimmer(session)
     if shimmer is not None:
         measured, where = shimmer
         short = burst_warning(measured, where, (left.shape[1], left.shape[0]), rig.focal_px,

@@ -44,7 +44,7 @@ from rigkit.errors import RigkitError
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.rangefinder.framing import Reading, escape_bytes
-from rigkit.rig.budget import burst_advice
+from rigkit.rig.budget import burst_advice, disparity_px
 from rigkit.rig.profile import RigProfile
 
 CHECK_SIDE_PX = 1024
@@ -343,7 +343,8 @@ def shimmer_check(session: Session, position: str) -> Check | None:
                                       "a nominal range in the rig profile would give the "
                                       "burst length to take")
     size = (first.shape[1], first.shape[0])
-    disparity = profile.focal_px * size[0] / profile.image_size[0] * profile.baseline_lr.value_m / z
+    focal = profile.focal_px * size[0] / profile.image_size[0]  # at the frames' size
+    disparity = disparity_px(z, focal, profile.baseline_lr.value_m)
     return Check("shimmer", True, burst_advice(shimmer, where, size, disparity, z)[0])
 
 

@@ -13,8 +13,10 @@ from rigkit.pipeline.burst import stack_burst
 from rigkit.pipeline.shimmer import Shimmer, burst_shimmer
 
 
-def load_frames(session: Session) -> list[np.ndarray]:
-    """Left, right and back as (H, W) float32 grey in [0, 255], ready for the pipeline.
+def load_frames(session: Session) -> tuple[list[np.ndarray], tuple[Shimmer, str] | None]:
+    """Left, right and back as (H, W) float32 grey in [0, 255], ready for the pipeline,
+    and the heat shimmer between the first two frames of the first position with a
+    burst (:func:`rigkit.pipeline.shimmer.burst_shimmer`; None for single frames).
 
     RAW frames are decoded linearly (cached in ``derived/`` by content hash) and share
     one brightness scale; the frames must be all RAW or all ordinary images. A burst is
@@ -30,29 +32,14 @@ def load_frames(session: Session) -> list[np.ndarray]:
             f"{session.path}: mixes RAW and non-RAW frames ({listed}); their brightness "
             "cannot be matched"
         )
+    linear = kinds == {True}
     cache = session.path / DERIVED_DIR
     cache.mkdir(exist_ok=True)
-    greys = [_linear_position(session, position) for position in POSITIONS]
-    return to_pipeline(greys, linear=kinds == {True})
-
-
-def _linear_position(session: Session, position: str) -> np.ndarray:
-    """A position's frame decoded to linear grey, or its burst stacked."""
-    cache = session.path / DERIVED_DIR
-    frames = [
-        load_linear_grey(session.path / f.file, cache, f.sha256) for f in session.bursts[position]
-    ]
-    return stack_burst(frames, f"{session.path}: {position} burst")
-
-
-def session_shimmer(session: Session) -> tuple[Shimmer, str] | None:
-    """The heat shimmer of the first position with a burst, between its first two frames
-    (:func:`rigkit.pipeline.shimmer.burst_shimmer`); None for single frames."""
+    greys, shimmer = [], None
     for position in POSITIONS:
-        burst = session.bursts[position][:2]
-        if len(burst) == 2:
-            cache = session.path / DERIVED_DIR
-            greys = [load_linear_grey(session.path / f.file, cache, f.sha256) for f in burst]
-            linear = is_raw(session.path / burst[0].file)
-            return burst_shimmer(to_pipeline(greys, linear=linear), position)
-    return None
+        frames = [load_linear_grey(session.path / f.file, cache, f.sha256)
+                  for f in session.bursts[position]]
+        if shimmer is None and len(frames) > 1:
+            shimmer = burst_shimmer(to_pipeline(frames[:2], linear=linear), position)
+        greys.append(stack_burst(frames, f"{session.path}: {position} burst"))
+    return to_pipeline(greys, linear=linear), shimmer

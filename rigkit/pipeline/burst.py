@@ -36,7 +36,7 @@ def stack_burst(frames: Sequence[np.ndarray], what: str = "burst") -> np.ndarray
                 f"{what}: frame {i} is {frame.shape[1]}x{frame.shape[0]}, frame 1 is "
                 f"{ref.shape[1]}x{ref.shape[0]}"
             )
-        dx, dy = _shift(ref, frame)
+        dx, dy = frame_shift(ref, frame)
         if np.hypot(dx, dy) > MAX_SHIFT_PX:
             raise InputError(
                 f"{what}: frame {i} is shifted by ({dx:+.0f}, {dy:+.0f}) px from frame 1; "
@@ -80,8 +80,9 @@ def median(frames: Sequence[np.ndarray], rows: int = 32) -> np.ndarray:
     return out
 
 
-def _shift(ref: np.ndarray, frame: np.ndarray) -> tuple[float, float]:
-    """(dx, dy) px such that ``frame(x + dx, y + dy) ~ ref(x, y)``."""
+def frame_shift(ref: np.ndarray, frame: np.ndarray) -> tuple[float, float]:
+    """(dx, dy) px such that ``frame(x + dx, y + dy) ~ ref(x, y)``: the tripod's sway
+    between two (H, W) frames of one position, by phase correlation on a central crop."""
     h, w = ref.shape
     side = min(CROP, h, w)
     y0, x0 = (h - side) // 2, (w - side) // 2

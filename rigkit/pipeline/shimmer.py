@@ -32,6 +32,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.distance import pdist
 
 from rigkit.errors import PipelineError
+from rigkit.pipeline.burst import frame_shift
 
 CROP_PX = 2048  # side of the central crop measured on, full-resolution px
 MAX_POINTS = 2000  # points tracked between the frames
@@ -105,7 +106,7 @@ def _tracks(a: np.ndarray, b: np.ndarray, what: str) -> tuple[np.ndarray, np.nda
     if found is None or len(found) < MIN_POINTS:
         raise PipelineError(f"{what}: too little texture to measure heat shimmer")
     p0 = found.reshape(-1, 1, 2).astype(np.float32)
-    (dx, dy), _ = cv2.phaseCorrelate(a.astype(np.float32), b.astype(np.float32))
+    dx, dy = frame_shift(a.astype(np.float32), b.astype(np.float32))
     p1, st1 = _follow(a, b, p0, p0 + np.array([dx, dy], np.float32))
     back, st2 = _follow(b, a, p1, p0.copy())
     h, w = a.shape

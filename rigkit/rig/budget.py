@@ -160,9 +160,8 @@ def burst_warning(
     measured ``shimmer`` calls for, else None (also where there is no depth)."""
     if not depth_m > 0:
         return None
-    text, need = burst_advice(
-        shimmer, where, image_size, focal_px * baseline_lr_m / depth_m, depth_m
-    )
+    disparity = disparity_px(depth_m, focal_px, baseline_lr_m)
+    text, need = burst_advice(shimmer, where, image_size, disparity, depth_m)
     if need is not None and need <= frames:
         return None
     return f"{text}; this capture has {frames}"
