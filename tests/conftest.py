@@ -94,6 +94,25 @@ def copy_session(
     return out
 
 
+def rig_file(folder: Path, size: tuple[int, int], base: str = "synthetic.yaml",
+             name: str = "rig.yaml") -> Path:
+    """rigs/``base`` for frames of ``size`` (width, height) px, written into ``folder``:
+    the same view, so a focal length given in px scales with the width."""
+    import yaml
+
+    from rigkit.rig import load_rig, rig_to_dict
+
+    root = Path(__file__).resolve().parents[1]
+    data = rig_to_dict(load_rig(root / "rigs" / base))
+    focal = data["camera"]["focal_length"]
+    if "px" in focal:
+        focal["px"] *= size[0] / data["camera"]["resolution"][0]
+    data["camera"]["resolution"] = list(size)
+    path = folder / name
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
 # --------------------------------------------------------------------------- comparisons
 
 OLD_RUN, NEW_RUN = "20261122T090000Z", "20261123T100000Z"

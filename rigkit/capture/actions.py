@@ -11,31 +11,35 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-import shutil
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from rigkit.capture.exif import ExifInfo, read_exif
-from rigkit.capture.rawio import image_size
+from rigkit.capture.frames import FrameFile, capture_problems, check_size
+from rigkit.capture.rawio import load_linear_grey
 from rigkit.capture.session import (
     DEFAULT_WINDOW_PX,
     DERIVED_DIR,
     POSITIONS,
     RAW_DIR,
     SESSION_FILE,
+    STAGING_DIR,
     Frame,
     LaserReading,
     Session,
     Target,
     check_name,
     is_session,
+    load_session,
     log_event,
     save_session,
+    session_lock,
     utc_now,
 )
-from rigkit.core.files import temp_file
+from rigkit.core.files import file_sha256, fsync_folder, temp_file
 from rigkit.errors import InputError
 from rigkit.rig.profile import load_rig, rig_to_dict
 
@@ -79,20 +83,6 @@ def _reference(rig_path: Path, session_path: Path) -> str:
         return str(rig_path.resolve())
 
 
-def file_sha256(path: Path) -> str:
-    """Hex SHA-256 of a file's bytes, read in 1 MiB blocks."""
-    digest = hashlib.sha256()
-    try:
-        with path.open("rb") as handle:
-            for block in iter(lambda: handle.read(1 << 20), b""):
-                digest.update(block)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc})") from None
-    return digest.hexdigest()
-
-
 def add_frame(
     session: Session,
     position: str,
@@ -102,22 +92,51 @@ def add_frame(
     burst: bool = False,
     origin: str | None = None,
 ) -> Session:
-    """Copy ``source`` into ``raw/`` as a frame for ``position`` and record it.
+    """Copy ``source`` into ``raw/`` as a frame for ``position`` and record it; returns
+    the session as saved.
 
-    The file is copied byte for byte (never moved), hashed, and checked to decode; its
-    EXIF is recorded. A position that already has frames gets this one added to its
-    burst with ``burst``, or has them replaced by it with ``replace_existing`` (their
-    files stay in ``raw/``); otherwise it is refused. A file already in ``raw/`` (same
-    name) is never overwritten: identical content is reused, different content refused.
-    ``origin`` is what session.yaml records as the frame's ``source``; by default the
-    file's absolute path (a file rigkit made itself says so instead, e.g. ``rendered by
-    rigkit synth, seed 7``, which does not depend on the machine).
+    The file is copied byte for byte (never moved) into a staging folder outside
+    ``raw/``, hashed as it is copied, decoded and checked there: it must hold a picture,
+    have the rig's image size and that of the frames already taken, not be another
+    frame of the session, and be RAW if they are (or not if they are not). Only a frame
+    that passes is moved into ``raw/``; a refused one leaves nothing behind. Its EXIF is
+    recorded. A position that already has frames gets this one added to its burst with
+    ``burst``, or has them replaced by it with ``replace_existing`` (their files stay in
+    ``raw/``); otherwise it is refused. A file already in ``raw/`` (same name) is never
+    overwritten: identical content is reused, different content gets the position as a
+    prefix. ``origin`` is what session.yaml records as the frame's ``source``; by default
+    the file's absolute path (a file rigkit made itself says so instead, e.g.
+    ``rendered by rigkit synth, seed 7``, which does not depend on the machine).
+
+    The change is made under the session's lock on the session as it is on disk then
+    (:func:`rigkit.capture.session.session_lock`), so concurrent changes all land.
     """
     if position not in POSITIONS:
         raise InputError(f"position {position!r}: expected one of {', '.join(POSITIONS)}")
     source = Path(source)
     if not source.is_file():
         raise InputError(f"{source}: no such file")
+    with session_lock(session.path, "add-frame"):
+        current = load_session(session.path)
+        clean_staging(current.path)
+        with _staged(current.path, source) as (staged, sha256):
+            frame = _checked_frame(current, position, source, staged, sha256,
+                                   replace_existing, burst, origin)
+            stored = _store(current.path / RAW_DIR, staged, source.name, position, sha256)
+        frame = replace(frame, file=f"{RAW_DIR}/{stored.name}")
+        before = () if replace_existing else current.bursts.get(position, ())
+        updated = replace(current, bursts={**current.bursts, position: (*before, frame)})
+        save_session(updated)
+        log_event(current.path, "add-frame",
+                  f"{position} {frame.file} sha256={frame.sha256} from {frame.source}")
+    return updated
+
+
+def _checked_frame(session: Session, position: str, source: Path, staged: Path,
+                   sha256: str, replace_existing: bool, burst: bool,
+                   origin: str | None) -> Frame:
+    """The Frame ``staged`` (a copy of ``source``) would be at ``position``, or
+    InputError naming ``source`` and what is wrong with it."""
     before = () if replace_existing else session.bursts.get(position, ())
     if before and not burst:
         raise InputError(
@@ -125,77 +144,89 @@ def add_frame(
             f"({session.frames[position].file}); use --burst to add to it or --replace "
             "to swap it"
         )
-    sha256 = file_sha256(source)
-    for taken in before:
-        if taken.sha256 == sha256:
-            raise InputError(
-                f"{source}: the same image as {position} frame {taken.file}; a burst needs "
-                "new exposures"
-            )
-    # Decode before copying: a file that does not decode never enters raw/. The decoded
-    # image is cached by content hash, so processing will not decode it again.
-    size = image_size(source, session.path / DERIVED_DIR, sha256)
-    exif = read_exif(source)
-    stored = _ingest(session.path / RAW_DIR, source, position, sha256)
-    frame = Frame(
+    bursts = session_frames(session)
+    kept = bursts.get(position, ())[: len(before)]
+    bursts[position] = (*kept, FrameFile(staged, sha256, str(source)))
+    problems = capture_problems(bursts, complete=False)
+    if problems:
+        raise InputError("; ".join(problems))
+    try:
+        grey = load_linear_grey(staged, session.path / DERIVED_DIR, sha256)
+    except InputError as exc:  # name the file the user gave, not the staged copy
+        raise InputError(str(exc).replace(str(staged), str(source))) from None
+    size = (grey.shape[1], grey.shape[0])
+    rig = session.rig()  # every frame has its size, so all frames agree
+    check_size(source, size, rig.image_size, f"the rig profile {rig.name} is for")
+    return Frame(
         position=position,
-        file=f"{RAW_DIR}/{stored.name}",
+        file="",  # where it will be stored in raw/
         sha256=sha256,
         size_px=size,
         added_utc=utc_now(),
         source=origin or str(source.resolve()),
-        exif=exif_fields(exif),
+        exif=exif_fields(read_exif(staged)),
     )
-    _check_same_size(session, frame, before)
-    updated = replace(session, bursts={**session.bursts, position: (*before, frame)})
-    save_session(updated)
-    log_event(
-        session.path, "add-frame",
-        f"{position} {frame.file} sha256={frame.sha256} from {frame.source}",
-    )
-    return updated
+def session_frames(session: Session) -> dict[str, tuple[FrameFile, ...]]:
+    """The session's frames as the depth run takes them (position -> its burst)."""
+    return {pos: tuple(FrameFile(session.path / f.file, f.sha256, f.file) for f in burst)
+            for pos, burst in session.bursts.items()}
 
 
-def _check_same_size(session: Session, frame: Frame, burst: tuple[Frame, ...]) -> None:
-    """All frames must match: those of the other positions and the position's burst."""
-    others = [f for pos, f in session.frames.items() if pos != frame.position]
-    for other in (*others, *burst):
-        if other.size_px != frame.size_px:
-            raise InputError(
-                f"{frame.source}: {frame.size_px[0]}x{frame.size_px[1]} px, but the "
-                f"{other.position} frame ({other.file}) is "
-                f"{other.size_px[0]}x{other.size_px[1]} px; all three must match"
-            )
+def clean_staging(session_path: Path) -> None:
+    """Remove what an interrupted ``add-frame`` left: staged copies, and the partial
+    copies (``raw/.ingest.*.tmp``) that rigkit made inside ``raw/`` before it staged
+    outside it. Called under the session's lock, when no copy can be under way."""
+    for leftover in [*(session_path / STAGING_DIR).glob("*"),
+                     *(session_path / RAW_DIR).glob(".ingest.*.tmp")]:
+        if leftover.is_file() and not leftover.is_symlink():
+            leftover.unlink(missing_ok=True)
 
 
-def _ingest(raw_dir: Path, source: Path, position: str, wanted: str) -> Path:
-    """Copy ``source`` (SHA-256 ``wanted``) into ``raw_dir`` without overwriting anything.
+@contextmanager
+def _staged(session_path: Path, source: Path) -> Iterator[tuple[Path, str]]:
+    """A byte-for-byte copy of ``source`` in the session's staging folder (outside
+    ``raw/``), fsynced, and the SHA-256 of exactly the bytes copied; removed afterwards,
+    whatever happens (a frame that is kept has been linked into ``raw/`` by then)."""
+    folder = session_path / STAGING_DIR
+    try:
+        folder.mkdir(exist_ok=True)
+        fd, tmp = temp_file(folder, "frame")
+    except OSError as exc:
+        raise InputError(f"{session_path}: cannot write to the session ({exc.strerror})"
+                         ) from None
+    staged = tmp.with_name(f"{tmp.stem}{source.suffix}")  # the decoder goes by the suffix
+    digest = hashlib.sha256()
+    try:
+        os.rename(tmp, staged)
+        with os.fdopen(fd, "wb") as out, source.open("rb") as original:
+            for block in iter(lambda: original.read(1 << 20), b""):
+                digest.update(block)
+                out.write(block)
+            out.flush()
+            os.fsync(out.fileno())
+        yield staged, digest.hexdigest()
+    finally:
+        tmp.unlink(missing_ok=True)
+        staged.unlink(missing_ok=True)
 
-    Keeps the original file name; if a different file already has it, prefixes the
-    position. Returns the stored path.
-    """
+
+def _store(raw_dir: Path, staged: Path, name: str, position: str, wanted: str) -> Path:
+    """Link the accepted ``staged`` file (SHA-256 ``wanted``) into ``raw_dir`` without
+    overwriting anything: under its original ``name``, or prefixed with the position
+    when a different file already has that name. Returns the stored path."""
     raw_dir.mkdir(parents=True, exist_ok=True)
-    for name in (source.name, f"{position}-{source.name}"):
-        target = raw_dir / name
+    for candidate in (name, f"{position}-{name}"):
+        target = raw_dir / candidate
         if target.exists():
-            if file_sha256(target) == wanted:
+            if target.is_file() and not target.is_symlink() and file_sha256(target) == wanted:
                 return target
             continue
-        fd, tmp = temp_file(raw_dir, "ingest")
-        try:
-            with os.fdopen(fd, "wb") as out, source.open("rb") as original:
-                shutil.copyfileobj(original, out, 1 << 20)
-                out.flush()
-                os.fsync(out.fileno())
-            if file_sha256(tmp) != wanted:
-                raise InputError(f"{source}: changed while it was being read; try again")
-            os.link(tmp, target)  # fails rather than overwrite a file that appeared meanwhile
-        finally:
-            tmp.unlink(missing_ok=True)
+        os.link(staged, target)  # fails rather than overwrite a file that appeared meanwhile
+        fsync_folder(raw_dir)
         return target
     raise InputError(
-        f"{raw_dir}: already holds different files named {source.name} and "
-        f"{position}-{source.name}; rename the file to add"
+        f"{raw_dir}: already holds different files named {name} and {position}-{name}; "
+        "rename the file to add"
     )
 
 
@@ -270,14 +301,15 @@ def check_target_inside(session: Session, target: Target) -> None:
 
 
 def frame_problems(session: Session) -> list[str]:
-    """Why the session cannot be processed yet: missing or altered frames, targets
-    outside the image. Empty when it is ready."""
-    problems = []
+    """Why the session cannot be processed yet, by the rules processing applies
+    (:func:`rigkit.capture.frames.capture_problems`): a position without a frame, one
+    file at two positions, RAW mixed with other images; frames missing, altered since
+    ingest or not of the rig's image size; targets outside the image. Empty when it is
+    ready."""
+    problems = capture_problems(session_frames(session))
+    size = session.rig().image_size
     for position in POSITIONS:
-        burst = session.bursts.get(position, ())
-        if not burst:
-            problems.append(f"no {position} frame")
-        for frame in burst:
+        for frame in session.bursts.get(position, ()):
             path = session.path / frame.file
             if not path.is_file():
                 problems.append(f"{position} frame {frame.file} is missing")
@@ -285,6 +317,11 @@ def frame_problems(session: Session) -> list[str]:
                 problems.append(
                     f"{position} frame {frame.file} no longer matches the hash recorded at "
                     "ingest (the original was changed)"
+                )
+            elif frame.size_px != size:
+                problems.append(
+                    f"{position} frame {frame.file} is {frame.size_px[0]}x{frame.size_px[1]}"
+                    f" px, the rig's image size {size[0]}x{size[1]} px"
                 )
     for target in session.targets:
         try:

@@ -2,9 +2,11 @@
 
 One camera (or three) must shoot the left, right and back frames with the same focal
 length and exposure; each frame's focal length must match its camera's within the
-profile's tolerance and its image size the profile's resolution. A different focal
-length breaks the one-f assumption the depth scale rests on, so processing stops on
-it (:func:`session_warnings`, unless forced); everything else is a warning.
+profile's tolerance. A different focal length breaks the one-f assumption the depth
+scale rests on, so processing stops on it (:func:`capture_warnings`, unless forced);
+everything else is a warning. The image size is not taken from EXIF, which often
+describes a preview: the decoded frame's size is checked against the rig
+(:func:`rigkit.capture.frames.check_size`).
 """
 
 from __future__ import annotations
@@ -16,9 +18,10 @@ from datetime import datetime
 from pathlib import Path
 
 from rigkit.capture.exif import ExifInfo, read_exif
-from rigkit.capture.session import POSITIONS, Session
+from rigkit.capture.rawio import frame_size
+from rigkit.capture.session import POSITIONS
 from rigkit.errors import InputError
-from rigkit.rig.budget import Finding
+from rigkit.rig.findings import Finding
 from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
 from rigkit.rig.profile import CAMERA_ROLES, CameraSpec, RigProfile
 
@@ -30,7 +33,9 @@ MAX_CAPTURE_SPAN_S = 30 * 60.0
 #: Finding codes from the capture check that stop processing (``force`` overrides): a
 #: different focal length breaks the one-f assumption the depth scale rests on.
 FATAL_FINDINGS = frozenset({"capture.focal_vs_profile"})
-FATAL_MISMATCH_FIELDS = frozenset({"FocalLength", "FocalLengthIn35mmFilm", "ExifImageWidth"})
+FATAL_MISMATCH_FIELDS = frozenset({"FocalLength", "FocalLengthIn35mmFilm"})
+UNCHECKED = frozenset({"capture.no_exif", "capture.focal_unchecked"})
+"""Capture findings that say something was not recorded, not that it is wrong."""
 
 
 _CONSISTENT_FIELDS = (
@@ -46,13 +51,29 @@ def check_capture(profile: RigProfile, paths: Sequence[str | Path]) -> list[Find
     """Check the left, right and back frames' EXIF against each other and the profile.
 
     The three frames must share focal length and exposure (time, aperture, ISO); each
-    frame's focal length must match its camera's within the profile's tolerance and its
-    image size the profile's resolution. Returns one Finding per problem (empty: all
-    good); InputError if there are not three paths or a file cannot be read.
+    frame's focal length must match its camera's within the profile's tolerance.
+    Returns one Finding per problem (empty: all good); InputError if there are not
+    three paths or a file cannot be read.
     """
     if len(paths) != len(CAMERA_ROLES):
         raise InputError(f"a capture is three images (left, right, back), got {len(paths)}")
     return check_exif(profile, dict(zip(CAMERA_ROLES, paths, strict=True)))
+
+
+def size_findings(profile: RigProfile, paths: Sequence[str | Path]) -> list[Finding]:
+    """A finding for each of the left, right and back frames whose decoded size
+    (:func:`rigkit.capture.rawio.frame_size`, not an EXIF size) is not the profile's."""
+    expected = profile.image_size
+    found = []
+    for role, path in zip(CAMERA_ROLES, paths, strict=True):
+        width, height = frame_size(path)
+        if (width, height) != expected:
+            turned = " (turned to portrait?)" if (height, width) == expected else ""
+            found.append(Finding(
+                "capture.size_vs_profile",
+                f"{role} frame ({Path(path).name}): decoded image {width}x{height} px differs "
+                f"from the profile's {expected[0]}x{expected[1]} px{turned}", role, "size"))
+    return found
 
 
 def check_exif(profile: RigProfile, paths: Mapping[str, str | Path]) -> list[Finding]:
@@ -146,7 +167,6 @@ def _against_profile(role: str, info: ExifInfo, camera: CameraSpec) -> list[Find
         finding
         for finding in (
             _focal_finding(role, info, camera),
-            _size_finding(role, info, camera),
             _model_finding(role, info, camera),
         )
         if finding is not None
@@ -197,22 +217,6 @@ def _focal_finding(role: str, info: ExifInfo, camera: CameraSpec) -> Finding | N
     return Finding("capture.focal_vs_profile", message, role, tag)
 
 
-def _size_finding(role: str, info: ExifInfo, camera: CameraSpec) -> Finding | None:
-    expected = camera.resolution
-    if info.image_size_px is None:
-        message = f"{_frame(role, info)}: image size not recorded in EXIF; not checked"
-        return Finding("capture.size_unchecked", message, role, "ExifImageWidth")
-    if info.image_size_px == expected:
-        return None
-    width, height = info.image_size_px
-    rotated = " (rotated to portrait?)" if (height, width) == expected else ""
-    message = (
-        f"{_frame(role, info)}: image size {width}x{height} differs from the profile's "
-        f"{expected[0]}x{expected[1]}{rotated}"
-    )
-    return Finding("capture.size_vs_profile", message, role, "ExifImageWidth")
-
-
 def _model_finding(role: str, info: ExifInfo, camera: CameraSpec) -> Finding | None:
     if info.model is None:
         return None
@@ -230,20 +234,26 @@ def _words(text: str) -> set[str]:
     return set(re.findall(r"[a-z0-9]+", text.lower()))
 
 
-def session_warnings(session: Session, force: bool) -> tuple[str, ...]:
-    """A session's capture findings as one-line warnings; InputError for a fatal one
-    (a focal length or image size that contradicts the rig) unless ``force``."""
-    findings = check_capture(session.rig(), [session.frame_path(p) for p in POSITIONS])
+def capture_warnings(profile: RigProfile, paths: Mapping[str, Path], force: bool
+                     ) -> tuple[str, ...]:
+    """The left, right and back frames' (role -> path) capture findings as one-line
+    warnings; InputError for a fatal one (a focal length that contradicts the rig, or
+    differs between the frames) unless ``force``. What could not be checked (no EXIF,
+    no sensor size in the profile) is one line, not one per frame."""
+    findings = check_exif(profile, paths)
     fatal = [
         f for f in findings
         if f.code in FATAL_FINDINGS
         or (f.code == "capture.mismatch" and f.field in FATAL_MISMATCH_FIELDS)
     ]
     if fatal and not force:
-        raise InputError(
-            f"{session.path}: " + "; ".join(f.message for f in fatal)
-            + " (--force processes it anyway)"
-        )
-    if [f.code for f in findings] == ["capture.no_exif"] * len(POSITIONS):
-        return ("no EXIF in any frame (e.g. rendered PNGs): capture settings not checked",)
-    return tuple(f.message for f in findings)
+        raise InputError("; ".join(f.message for f in fatal) + " (--force processes it anyway)")
+    warnings = tuple(f.message for f in findings if f.code not in UNCHECKED)
+    unchecked = [f for f in findings if f.code in UNCHECKED]
+    if [f.code for f in unchecked] == ["capture.no_exif"] * len(POSITIONS):
+        return (*warnings, "no EXIF in any frame (e.g. rendered images): capture settings "
+                "not checked")
+    if unchecked:
+        return (*warnings, "not checked: " + "; ".join(
+            f.message.split(": ", 1)[-1] for f in unchecked))
+    return warnings

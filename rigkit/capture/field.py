@@ -6,7 +6,6 @@ front end gets the same answers:
 * the frame's EXIF against the frames already taken and the rig profile
   (:func:`rigkit.capture.checks.check_capture`'s rules for the frames present so far);
 * clipped highlights (a saturated sensor leaves nothing to match);
-* the same file taken for two positions (identical content);
 * from the second frame of a burst on: the heat shimmer between the position's first
   and newest frame, measured at full resolution, and the burst length it calls for at
   the profile's nominal range;
@@ -19,7 +18,12 @@ front end gets the same answers:
 * after the back frame: its magnification m against the left view, below 1 because the
   back camera is ``C_lb`` behind, and the range it implies, z = m C_lb / (1 - m) (an
   object at depth z from the left camera is at z + C_lb from the back one; the paper's
-  Sec. 3.3 resolves the depth ambiguity with this scale).
+  Sec. 3.3 resolves the depth ambiguity with this scale); and, with the right frame
+  taken, that the two are not swapped (the pipeline's rule, so ``rigkit depth`` and
+  processing refuse what is flagged here).
+
+A frame that has no picture, is another frame of the session or has the wrong size
+never gets this far: :func:`rigkit.capture.actions.add_frame` refuses it on arrival.
 
 A position holds one frame or a burst of several; :func:`frames_at` and
 :func:`add_position_frame` are how the field workflow reads and grows it.
@@ -37,14 +41,18 @@ import cv2
 import numpy as np
 
 from rigkit.capture.actions import add_frame
-from rigkit.capture.checks import check_exif
+from rigkit.capture.checks import UNCHECKED, check_exif
+from rigkit.capture.picture import CLIP_LEVEL
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
 from rigkit.errors import RigkitError
+from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, roles_problem
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.rangefinder.framing import Reading, escape_bytes
-from rigkit.rig.budget import burst_advice, disparity_px
+from rigkit.rig.bursts import burst_advice
+from rigkit.rig.findings import Finding
+from rigkit.rig.formulas import disparity_px
 from rigkit.rig.profile import RigProfile
 
 CHECK_SIDE_PX = 1024
@@ -56,28 +64,11 @@ left ~0.2 px (tracking and sensor noise) in synthetic tests, a 2 m move at 300 m
 at 384 px wide and far more at full size."""
 MAX_ROLL_DEG = 10.0
 """Largest plausible roll between two positions; more means a camera turned on its side."""
-MAX_RIGHT_SCALE_CHANGE = 0.01
-"""Left and right views are at the same distance: a scale change beyond this is zoom."""
-_UNCHECKED = frozenset({"capture.no_exif", "capture.focal_unchecked", "capture.size_unchecked"})
-"""Capture findings that say something was not recorded, not that it is wrong."""
-CLIP_LEVEL = 0.995
-"""Grey level (fraction of full scale) from which a pixel counts as clipped."""
-MAX_CLIPPED = 0.01
-"""Largest share of clipped pixels before the highlights count as blown."""
+MAX_BLOWN = 0.01
+"""Largest share of clipped pixels (:data:`rigkit.capture.picture.CLIP_LEVEL`) before the
+highlights count as blown and the frame should be taken again."""
 RANGE_FACTOR = 2.0
 """An implied range more than this factor from the profile's nominal range is suspect."""
-
-
-@dataclass(frozen=True)
-class Check:
-    """One on-site check's answer: ``ok``, a one-line ``message`` and, when not ok, what
-    to ``redo``. ``code`` is stable for machines (``exif``, ``exposure``, ``same_frame``,
-    ``shimmer``, ``parallax``, ``rotation``, ``scale``, ``magnification``, ``match``)."""
-
-    code: str
-    ok: bool
-    message: str
-    redo: str = ""
 
 
 @dataclass(frozen=True)
@@ -208,7 +199,7 @@ def range_from_magnification(magnification: float, baseline_lb_m: float) -> floa
     return magnification * baseline_lb_m / (1.0 - magnification)
 
 
-def exif_check(session: Session, position: str) -> Check:
+def exif_check(session: Session, position: str) -> Finding:
     """The position's frame's EXIF against the other frames taken and the profile.
 
     Fields the camera did not record are noted, not failed; a rendered frame without
@@ -217,102 +208,87 @@ def exif_check(session: Session, position: str) -> Check:
     paths = {pos: session.path / frames_at(session, pos)[-1].file
              for pos in POSITIONS if frames_at(session, pos)}
     findings = [f for f in check_exif(session.rig(), paths) if f.frame in (position, None)]
-    problems = [f for f in findings if f.code not in _UNCHECKED]
+    problems = [f for f in findings if f.code not in UNCHECKED]
     if problems:
-        return Check(
-            "exif", False, "; ".join(f.message for f in problems),
-            "set the camera back to the same zoom, exposure and ISO, and take this frame again",
+        return Finding(
+            "exif", "; ".join(f.message for f in problems),
+            redo="set the camera back to the same zoom, exposure and ISO, and take this frame "
+            "again",
         )
     if any(f.code == "capture.no_exif" for f in findings):
-        return Check("exif", True, "no EXIF in this frame (rendered?): settings not checked")
+        return Finding("exif", "no EXIF in this frame (rendered?): settings not checked",
+                       ok=True)
     missing = sorted({f.field or "" for f in findings})
     note = f" (not recorded: {', '.join(missing)})" if missing else ""
-    return Check("exif", True, f"EXIF agrees with the other frames and the profile{note}")
+    return Finding("exif", f"EXIF agrees with the other frames and the profile{note}", ok=True)
 
 
-def exposure_check(session: Session, frame: Frame) -> Check:
+def exposure_check(session: Session, frame: Frame) -> Finding:
     """Clipped highlights: where the sensor saturated there is no texture to match, and
     a frame too bright for one position is so for all (they must share the exposure)."""
     path = session.path / frame.file
     grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
     clipped = float(np.mean(grey >= CLIP_LEVEL))
-    if clipped <= MAX_CLIPPED:
-        return Check("exposure", True, f"highlights: {100 * clipped:.2f} % clipped")
-    return Check(
-        "exposure", False, f"{100 * clipped:.1f} % of the frame is clipped (blown highlights)",
-        "lower the exposure and take the frames again from the left position (all three "
-        "must share it)",
+    if clipped <= MAX_BLOWN:
+        return Finding("exposure", f"highlights: {100 * clipped:.2f} % clipped", ok=True)
+    return Finding(
+        "exposure", f"{100 * clipped:.1f} % of the frame is clipped (blown highlights)",
+        redo="lower the exposure and take the frames again from the left position (all "
+        "three must share it)",
     )
 
 
-def same_frame_check(session: Session, position: str) -> Check | None:
-    """A failed check when the position's newest frame is byte for byte another
-    position's frame; None otherwise."""
-    frame = frames_at(session, position)[-1]
-    for other in POSITIONS:
-        if other != position and any(f.sha256 == frame.sha256 for f in frames_at(session, other)):
-            return Check(
-                "same_frame", False,
-                f"the {position} frame {frame.file} is the same file as the {other} frame",
-                f"take a new {position} frame from the {position} position",
-            )
-    return None
-
-
-def right_checks(view: ViewMap) -> list[Check]:
+def right_checks(view: ViewMap) -> list[Finding]:
     """Parallax, roll and scale of the right view against the left one."""
     move = "move the tripod C_lr to the right of the left position and take the right frame"
     parallax_ok = view.parallax_px >= MIN_PARALLAX_PX * view.reduction
     checks = [
-        Check("parallax", True, f"parallax {view.parallax_px:.1f} px across the scene")
-        if parallax_ok else Check(
-            "parallax", False,
+        Finding("parallax", f"parallax {view.parallax_px:.1f} px across the scene", ok=True)
+        if parallax_ok else Finding(
+            "parallax",
             f"no parallax ({view.parallax_px:.2f} px): the tripod was not moved, or the "
-            "same view was taken twice", move,
+            "same view was taken twice", redo=move,
         ),
         _roll_check(view, "right"),
     ]
     if abs(view.scale - 1.0) > MAX_RIGHT_SCALE_CHANGE:
-        checks.append(Check(
-            "scale", False,
-            f"right view {view.scale:.4f}× the left one: the zoom changed",
-            "set the zoom back to the left frame's and take the right frame again",
+        checks.append(Finding(
+            "scale", f"right view {view.scale:.4f}× the left one: the zoom changed",
+            redo="set the zoom back to the left frame's and take the right frame again",
         ))
     return checks
 
 
-def back_checks(view: ViewMap, profile: RigProfile) -> list[Check]:
+def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
     """Magnification of the back view (< 1) and the range it implies."""
     c_lb = profile.baseline_lb.value_m
     checks = [_roll_check(view, "back")]
     if view.scale >= 1.0:
-        checks.append(Check(
-            "magnification", False,
-            f"back view {view.scale:.4f}×: not smaller than the left view",
-            f"take the back frame {c_lb:g} m behind the left position, same zoom",
+        checks.append(Finding(
+            "magnification", f"back view {view.scale:.4f}×: not smaller than the left view",
+            redo=f"take the back frame {c_lb:g} m behind the left position, same zoom",
         ))
         return checks
     z = range_from_magnification(view.scale, c_lb)
     text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {c_lb:.1f} m"
     nominal = profile.nominal_range_m
     if nominal is not None and not nominal / RANGE_FACTOR <= z <= nominal * RANGE_FACTOR:
-        checks.append(Check(
-            "magnification", False, f"{text}, far from the planned {nominal:g} m",
-            f"check that the back position is {c_lb:g} m behind the left one and the zoom "
-            "is unchanged, then take the back frame again",
+        checks.append(Finding(
+            "magnification", f"{text}, far from the planned {nominal:g} m",
+            redo=f"check that the back position is {c_lb:g} m behind the left one and the "
+            "zoom is unchanged, then take the back frame again",
         ))
     else:
-        checks.append(Check("magnification", True, text))
+        checks.append(Finding("magnification", text, ok=True))
     return checks
 
 
-def _roll_check(view: ViewMap, position: str) -> Check:
+def _roll_check(view: ViewMap, position: str) -> Finding:
     if abs(view.roll_deg) <= MAX_ROLL_DEG:
-        return Check("rotation", True, f"{position} view rolled {view.roll_deg:+.2f} deg")
-    return Check(
-        "rotation", False,
-        f"{position} view rolled {view.roll_deg:+.1f} deg against the left one",
-        f"level the camera as for the left frame and take the {position} frame again",
+        return Finding("rotation", f"{position} view rolled {view.roll_deg:+.2f} deg", ok=True)
+    return Finding(
+        "rotation", f"{position} view rolled {view.roll_deg:+.1f} deg against the left one",
+        redo=f"level the camera as for the left frame and take the {position} frame again",
     )
 
 
@@ -321,7 +297,7 @@ def _round_range(z: float) -> str:
     return f"{float(f'{z:.2g}'):g}" if z >= 100 else f"{z:.0f}"
 
 
-def shimmer_check(session: Session, position: str) -> Check | None:
+def shimmer_check(session: Session, position: str) -> Finding | None:
     """Heat shimmer measured between the first and the newest frame of ``position``'s
     burst at full resolution (:mod:`rigkit.pipeline.shimmer`), and the burst length
     that keeps the offset within 0.3 % of depth at the profile's nominal range in nine
@@ -335,42 +311,56 @@ def shimmer_check(session: Session, position: str) -> Check | None:
     try:
         shimmer = measure_shimmer(first, full_image(session, frames[-1]), where)
     except RigkitError as exc:
-        return Check("shimmer", True, f"heat shimmer not measured: {exc}")
+        return Finding("shimmer", f"heat shimmer not measured: {exc}", ok=True)
     profile = session.rig()
     z = profile.nominal_range_m
     if z is None:
-        return Check("shimmer", True, f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where}); "
-                                      "a nominal range in the rig profile would give the "
-                                      "burst length to take")
-    size = (first.shape[1], first.shape[0])
-    focal = profile.focal_px * size[0] / profile.image_size[0]  # at the frames' size
-    disparity = disparity_px(z, focal, profile.baseline_lr.value_m)
-    return Check("shimmer", True, burst_advice(shimmer, where, size, disparity, z)[0])
+        return Finding("shimmer", f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where}); a "
+                       "nominal range in the rig profile would give the burst length to "
+                       "take", ok=True)
+    disparity = disparity_px(z, profile.focal_px, profile.baseline_lr.value_m)
+    advice = burst_advice(shimmer, where, profile.image_size, disparity, z)[0]
+    return Finding("shimmer", advice, ok=True)
 
 
-def onsite_checks(session: Session, position: str) -> list[Check]:
+def onsite_checks(session: Session, position: str) -> list[Finding]:
     """Every check for the newest frame of ``position`` (which must have one)."""
     checks = [exif_check(session, position),
               exposure_check(session, frames_at(session, position)[-1])]
-    same = same_frame_check(session, position)
-    if same is not None:
-        return [*checks, same]
     shimmer = shimmer_check(session, position)
     if shimmer is not None:
         checks.append(shimmer)
     if position == "left" or not frames_at(session, "left"):
         return checks
     left, reduction = check_image(session, frames_at(session, "left")[-1])
-    other, _ = check_image(session, frames_at(session, position)[-1])
     try:
-        view = map_views(left, other, reduction)
+        view = _view_of(session, position, left, reduction)
     except RigkitError as exc:
-        return [*checks, Check("match", False, str(exc),
-                               f"aim at the left frame's scene and take the {position} frame")]
+        return [*checks, Finding("match", str(exc), redo=f"aim at the left frame's scene and "
+                                 f"take the {position} frame")]
     if position == "right":
         return [*checks, *right_checks(view)]
-    return [*checks, *back_checks(view, session.rig())]
+    back = back_checks(view, session.rig())
+    if all_ok(back) and frames_at(session, "right"):  # magnified: is the right one less so?
+        back += _roles_check(_view_of(session, "right", left, reduction), view)
+    return [*checks, *back]
 
 
-def all_ok(checks: Sequence[Check]) -> bool:
+def _view_of(session: Session, position: str, left: np.ndarray, reduction: float) -> ViewMap:
+    """How ``position``'s newest frame maps onto the left check image ``left``."""
+    other, _ = check_image(session, frames_at(session, position)[-1])
+    return map_views(left, other, reduction)
+
+
+def _roles_check(right: ViewMap, back: ViewMap) -> list[Finding]:
+    """A failed check where the right and back frames look swapped (one rule with the
+    pipeline's, :func:`rigkit.pipeline.checks.roles_problem`)."""
+    problem = roles_problem(right.scale, back.scale)
+    if problem is None:
+        return []
+    return [Finding("roles", problem, redo="take the right frame beside the left position "
+                    "and the back frame behind it, then replace the frames that are swapped")]
+
+
+def all_ok(checks: Sequence[Finding]) -> bool:
     return all(check.ok for check in checks)

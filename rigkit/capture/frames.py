@@ -1,45 +1,159 @@
-"""A session's three positions as the pipeline's grey images (RAW or ordinary image
-files; a position's burst median-stacked into one), and the heat shimmer its bursts
-show."""
+"""A capture's frames as the pipeline's grey images: decoded, checked, stacked.
+
+Every way into the depth method (``rigkit depth``, ``rigkit process``, ``rigkit
+field``) reads frames here, so a frame is decoded and judged the same way whichever
+command reads it:
+
+* each file is decoded (RAW through LibRaw, never an embedded preview) and must hold
+  a picture (:func:`rigkit.capture.rawio.load_linear_grey`);
+* the set must make a capture (:func:`capture_problems`): every position present, no
+  file at two positions or twice in a burst, RAW not mixed with ordinary images;
+* every frame must have the size of the others and of the rig (:func:`check_size`);
+* a position's burst is aligned and median-stacked, and the heat shimmer between the
+  first two frames of the first burst is measured;
+* the three images are brought to one brightness scale.
+"""
 
 from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.capture.session import DERIVED_DIR, POSITIONS, Session
+from rigkit.capture.session import POSITIONS
+from rigkit.core.files import file_sha256
 from rigkit.errors import InputError
 from rigkit.pipeline.burst import stack_burst
 from rigkit.pipeline.shimmer import Shimmer, burst_shimmer
 
 
-def load_frames(session: Session) -> tuple[list[np.ndarray], tuple[Shimmer, str] | None]:
-    """Left, right and back as (H, W) float32 grey in [0, 255], ready for the pipeline,
-    and the heat shimmer between the first two frames of the first position with a
-    burst (:func:`rigkit.pipeline.shimmer.burst_shimmer`; None for single frames).
+@dataclass(frozen=True)
+class FrameFile:
+    """One frame of a capture: its file and, where known, the SHA-256 of its bytes (hex;
+    a session records it at ingest, and it names the frame's decoded copy in a cache);
+    ``name`` is how messages show it (a session's ``raw/...``; default: the path)."""
 
-    RAW frames are decoded linearly (cached in ``derived/`` by content hash) and share
-    one brightness scale; the frames must be all RAW or all ordinary images. A burst is
-    aligned and median-stacked (in linear light for RAW) into its position's image.
-    """
+    path: Path
+    sha256: str | None = None
+    name: str = ""
+
+    @property
+    def shown(self) -> str:
+        return self.name or str(self.path)
+
+
+@dataclass(frozen=True)
+class LoadedCapture:
+    """The three positions ready for the pipeline: ``images`` left, right, back, each
+    (H, W) float32 grey in [0, 255] on one scale; ``size`` (W, H) px; ``shimmer`` the
+    heat shimmer measured between the first two frames of the first burst and which
+    they were (None for single frames); ``linear`` whether they came from RAW."""
+
+    images: tuple[np.ndarray, np.ndarray, np.ndarray]
+    size: tuple[int, int]
+    shimmer: tuple[Shimmer, str] | None
+    linear: bool
+
+
+def frame_files(bursts: Mapping[str, Sequence[Path]]) -> dict[str, tuple[FrameFile, ...]]:
+    """Frames named by hand (position -> files), hashed where two files have the same
+    size: only those can be copies of each other, so a frame given twice is caught
+    without reading every file twice."""
+    every = [Path(p) for paths in bursts.values() for p in paths]
+    sizes: dict[int, int] = {}
+    for path in every:
+        if path.is_file():
+            size = path.stat().st_size
+            sizes[size] = sizes.get(size, 0) + 1
+    def frame(path: Path) -> FrameFile:
+        shared = path.is_file() and sizes[path.stat().st_size] > 1
+        return FrameFile(path, file_sha256(path) if shared else None)
+
+    return {pos: tuple(frame(Path(p)) for p in paths) for pos, paths in bursts.items()}
+
+
+def capture_problems(bursts: Mapping[str, Sequence[FrameFile]], complete: bool = True
+                     ) -> list[str]:
+    """Why these frames (position -> its burst) do not make a capture, one phrase
+    each: a position without a frame (when the capture should be ``complete``), one
+    file at two positions or twice in a burst (same path, or same content where hashes
+    are known), RAW mixed with ordinary image files."""
+    problems = [f"no {pos} frame" for pos in POSITIONS if complete and not bursts.get(pos)]
+    seen: dict[object, tuple[str, FrameFile]] = {}
     for position in POSITIONS:
-        session.frame_path(position)  # InputError naming a missing position
-    every = [session.path / f.file for pos in POSITIONS for f in session.bursts[pos]]
-    kinds = {is_raw(path) for path in every}
+        for frame in bursts.get(position, ()):
+            for key in _identities(frame):
+                if key in seen:
+                    where, first = seen[key]
+                    twice = "twice in the burst" if where == position else \
+                        f"for {where} and {position}"
+                    problems.append(f"{frame.shown} is the same file as {first.shown}, "
+                                    f"given {twice}: every frame must be its own exposure")
+                    break
+            else:
+                seen.update(dict.fromkeys(_identities(frame), (position, frame)))
+    every = [f for pos in POSITIONS for f in bursts.get(pos, ())]
+    kinds = {is_raw(f.path) for f in every}
     if len(kinds) > 1:
-        listed = ", ".join(f"{pos} {session.frames[pos].file}" for pos in POSITIONS)
-        raise InputError(
-            f"{session.path}: mixes RAW and non-RAW frames ({listed}); their brightness "
-            "cannot be matched"
-        )
-    linear = kinds == {True}
-    cache = session.path / DERIVED_DIR
-    cache.mkdir(exist_ok=True)
+        raw = next(f for f in every if is_raw(f.path))
+        plain = next(f for f in every if not is_raw(f.path))
+        problems.append(f"RAW frames ({raw.shown}) mixed with ordinary images "
+                        f"({plain.shown}): their brightness cannot be matched; take all "
+                        "three positions in one format")
+    return problems
+
+
+def _identities(frame: FrameFile) -> list[object]:
+    """What makes two frames the same file: the resolved path, and the content hash."""
+    keys: list[object] = [("path", frame.path.resolve())]
+    if frame.sha256:
+        keys.append(("sha256", frame.sha256))
+    return keys
+
+
+def check_size(path: Path | str, size: tuple[int, int], expected: tuple[int, int],
+               whose: str) -> None:
+    """InputError naming the file and both sizes when a decoded frame of ``size`` (W, H)
+    is not ``expected``; ``whose`` says whose size that is ("the rig profile p1000 is
+    for", "the left frame raw/a.png is")."""
+    if size == expected:
+        return
+    turned = " (turned to portrait?)" if size == expected[::-1] else ""
+    raise InputError(
+        f"{path}: {size[0]}x{size[1]} px, but {whose} {expected[0]}x{expected[1]} px{turned};"
+        " all frames of a capture must have the rig's image size"
+    )
+
+
+def load_capture(
+    bursts: Mapping[str, Sequence[FrameFile]],
+    resolution: tuple[int, int] | None = None,
+    cache_dir: Path | None = None,
+    rig_name: str = "rig profile",
+) -> LoadedCapture:
+    """Decode, check and stack a capture's frames (module docstring). ``resolution``
+    (W, H) is the rig's image size (None: the frames only have to agree); ``cache_dir``
+    keeps decoded RAW frames by content hash. InputError names the first problem."""
+    problems = capture_problems(bursts)
+    if problems:
+        raise InputError("; ".join(problems))
+    linear = is_raw(bursts["left"][0].path)
+    expected, whose = resolution, f"the {rig_name} is for"
     greys, shimmer = [], None
     for position in POSITIONS:
-        frames = [load_linear_grey(session.path / f.file, cache, f.sha256)
-                  for f in session.bursts[position]]
+        frames = []
+        for frame in bursts[position]:
+            grey = load_linear_grey(frame.path, cache_dir, frame.sha256)
+            size = (grey.shape[1], grey.shape[0])
+            if expected is None:
+                expected, whose = size, f"the {position} frame {frame.shown} is"
+            check_size(frame.shown, size, expected, whose)
+            frames.append(grey)
         if shimmer is None and len(frames) > 1:
             shimmer = burst_shimmer(to_pipeline(frames[:2], linear=linear), position)
-        greys.append(stack_burst(frames, f"{session.path}: {position} burst"))
-    return to_pipeline(greys, linear=linear), shimmer
+        greys.append(stack_burst(frames, f"{position} burst"))
+    left, right, back = to_pipeline(greys, linear=linear)
+    return LoadedCapture((left, right, back), (left.shape[1], left.shape[0]), shimmer, linear)

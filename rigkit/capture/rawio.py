@@ -9,8 +9,10 @@ float32 [0, 255] scale.
 RAW frames are decoded to *linear* data: values proportional to the light on the
 sensor, 1.0 at the sensor's white level. Decoding keeps the sensor's pixel grid: the
 EXIF Orientation tag is *not* applied (see :func:`decode_raw`), and neither is it for
-PNG/TIFF/JPEG frames, so every frame has the size and layout the camera recorded and
-that ``rigkit.capture.exif.ExifInfo.image_size_px`` reports.
+PNG/TIFF/JPEG frames, so every frame has the size and layout the camera recorded.
+That decoded size is the one rigkit checks and reports (:func:`frame_size` gives it
+without decoding a RAW file's pixels); EXIF sizes, which in RAW files often describe
+a preview, are not used.
 
 Decoding a large RAW file takes seconds, so :func:`load_linear_grey` can keep the
 decoded grey image as a 16-bit PNG in a cache folder, named after the file's SHA-256.
@@ -25,9 +27,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from rigkit.capture.picture import picture_problem
+from rigkit.core.chatter import captured_stderr
 from rigkit.core.files import write_png
 from rigkit.errors import InputError
-from rigkit.pipeline.images import to_grey
+from rigkit.pipeline.images import check_decoder_output, load_grey
 
 # File name suffixes (lower case) of the camera RAW formats LibRaw decodes.
 RAW_SUFFIXES: frozenset[str] = frozenset(
@@ -41,6 +45,7 @@ RAW_SUFFIXES: frozenset[str] = frozenset(
         ".dng",  # Adobe DNG (Leica, Pentax, Ricoh, phones, converters)
         ".erf",  # Epson
         ".fff",  # Hasselblad / Imacon
+        ".gpr",  # GoPro (refused with its own message: LibRaw lacks its VC-5 codec)
         ".iiq",  # Phase One
         ".kdc",  # Kodak
         ".mef",  # Mamiya
@@ -60,6 +65,14 @@ RAW_SUFFIXES: frozenset[str] = frozenset(
         ".x3f",  # Sigma
     }
 )
+
+# Content that is not RAW, though named so: (leading bytes, what it is, its suffix).
+_NOT_RAW = ((b"\xff\xd8\xff", "JPEG", ".jpg"), (b"\x89PNG\r\n\x1a\n", "PNG", ".png"))
+
+MIN_RAW_BYTES_PER_PX = 0.05
+"""A RAW file holding less than this per sensor pixel has no image data in it. Real
+files hold 0.4 (a lossy, reduced DNG) to 2 bytes per pixel; EXIF-only samples with the
+image stripped hold 0.001-0.005 (the files in ../shared/data/real-raw, README there)."""
 
 # Rec. 709 / sRGB luminance weights (R, G, B). They give the luminance Y of *linear*
 # sRGB-primary data, which is what decode_raw produces.
@@ -104,18 +117,26 @@ def decode_raw(path: str | Path) -> np.ndarray:
       made on the sensor grid, and a camera's orientation sensor can flip its tag on a
       steeply tilted telephoto, which would silently rotate one view of three. The
       output has LibRaw's image size on the sensor grid (masked border pixels, such
-      as a DNG ActiveArea margin, are left out; nothing else is cropped), which for
-      most cameras is the image size EXIF records.
+      as a DNG ActiveArea margin, are left out; a DNG's DefaultCrop is not applied),
+      which is the size rigkit reports and checks for the frame.
+
+    LibRaw reads the full-resolution image wherever the container keeps it (a NEF's or
+    DNG's SubIFD), never the small preview in IFD 0. What it prints is captured
+    (:mod:`rigkit.core.chatter`) and read: a complaint that the data ends early refuses
+    the file.
 
     Raises InputError naming the file when it is missing, not a RAW file LibRaw
-    supports, truncated or corrupt.
+    supports (a JPEG or PNG with a RAW file name, a GoPro GPR, an unknown camera), too
+    small to hold its image (an EXIF-only or stripped file), truncated or corrupt.
     """
     import rawpy
 
     path = Path(path)
     _require_file(path)
+    _check_raw_container(path)
     try:
-        with rawpy.imread(str(path)) as raw:
+        with captured_stderr() as chatter, rawpy.imread(str(path)) as raw:
+            _check_holds_image(path, raw.sizes.raw_width * raw.sizes.raw_height)
             rgb = raw.postprocess(
                 demosaic_algorithm=rawpy.DemosaicAlgorithm.AHD,
                 use_camera_wb=True,
@@ -128,7 +149,38 @@ def decode_raw(path: str | Path) -> np.ndarray:
             )
     except rawpy.LibRawError as exc:
         raise InputError(f"{path}: {_libraw_reason(exc)}") from None
+    check_decoder_output(path, chatter.text)
     return np.asarray(rgb, dtype=np.uint16)
+
+
+def _check_raw_container(path: Path) -> None:
+    """InputError for a file with a RAW name whose content is another format that
+    LibRaw would misreport, or a RAW format it cannot decode."""
+    with path.open("rb") as handle:
+        head = handle.read(16)
+    for signature, kind, suffix in _NOT_RAW:
+        if head.startswith(signature):
+            raise InputError(
+                f"{path}: a {kind} image with a RAW file name ({path.suffix}); rename it to "
+                f"{suffix} to use it as an ordinary image"
+            )
+    if path.suffix.lower() == ".gpr":
+        raise InputError(
+            f"{path}: GoPro GPR (DNG with VC-5 compression) is not a RAW format LibRaw "
+            "decodes; convert it to a plain DNG first (GoPro's gpr_tools)"
+        )
+
+
+def _check_holds_image(path: Path, sensor_px: int) -> None:
+    """InputError when the file is far too small for the sensor image it declares: its
+    image data was stripped (EXIF-only samples) or it was cut short."""
+    size = path.stat().st_size
+    if sensor_px > 0 and size < MIN_RAW_BYTES_PER_PX * sensor_px:
+        raise InputError(
+            f"{path}: {size / 1024:,.0f} KB cannot hold its {sensor_px / 1e6:.1f} MP sensor "
+            f"image ({size / sensor_px:.3f} bytes per pixel): the image data is missing "
+            "(an EXIF-only or stripped file, or a copy cut short)"
+        )
 
 
 def linear_grey(rgb16: np.ndarray) -> np.ndarray:
@@ -165,32 +217,52 @@ def load_linear_grey(
     pipeline only needs consistent brightness, not linear data. As for RAW files, the
     EXIF Orientation is not applied.
 
-    Raises InputError naming the file when it is missing or cannot be decoded, or
-    naming the cache file when it cannot be written.
+    A freshly decoded frame must hold a picture (:func:`rigkit.capture.picture.
+    picture_problem`); only such a frame is cached, so a cached one has passed.
+
+    Raises InputError naming the file when it is missing, cannot be decoded or holds no
+    picture, or naming the cache file when it cannot be written.
     """
     path = Path(path)
     if not is_raw(path):
-        return _read_plain_grey(path)
+        return _with_picture(path, _read_plain_grey(path))
     cache = _cache_path(cache_dir, sha256)
     if cache is not None:
         cached = _read_cache(cache)
         if cached is not None:
             return _from_u16(cached)
     grey16 = _to_u16(linear_grey(decode_raw(path)))
+    grey = _with_picture(path, _from_u16(grey16))
     if cache is not None:
         _write_cache(cache, grey16)
-    return _from_u16(grey16)
+    return grey
 
 
-def image_size(path: Path, cache_dir: Path, sha256: str) -> tuple[int, int]:
-    """(width, height) in px of the image rigkit decodes from ``path``.
+def _with_picture(path: Path, grey: np.ndarray) -> np.ndarray:
+    """``grey`` when it holds a picture; InputError naming ``path`` and why not."""
+    problem = picture_problem(grey)
+    if problem is not None:
+        raise InputError(f"{path}: no picture: {problem}")
+    return grey
 
-    Decodes the file, which proves it readable (InputError naming it if not), and leaves
-    a RAW file's decoded image in ``cache_dir`` under its content hash ``sha256``.
-    """
-    cache_dir.mkdir(parents=True, exist_ok=True)
-    grey = load_linear_grey(path, cache_dir, sha256)
-    return int(grey.shape[1]), int(grey.shape[0])
+
+def frame_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) px of the image :func:`load_linear_grey` decodes from ``path``:
+    LibRaw's output size for a RAW file (read from its header, the pixels are not
+    decoded), the decoded size of an ordinary image. InputError as for decoding."""
+    import rawpy
+
+    path = Path(path)
+    if not is_raw(path):
+        grey = _read_plain_grey(path)
+        return grey.shape[1], grey.shape[0]
+    _require_file(path)
+    _check_raw_container(path)
+    try:
+        with captured_stderr(), rawpy.imread(str(path)) as raw:
+            return int(raw.sizes.width), int(raw.sizes.height)
+    except rawpy.LibRawError as exc:
+        raise InputError(f"{path}: {_libraw_reason(exc)}") from None
 
 
 def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool) -> list[np.ndarray]:
@@ -238,7 +310,8 @@ def _libraw_reason(exc: Exception) -> str:
     import rawpy
 
     if isinstance(exc, rawpy.LibRawFileUnsupportedError):
-        return "not a RAW file LibRaw can decode (unsupported format or camera)"
+        return ("not a RAW file LibRaw can decode (an unsupported format or camera, or a "
+                "file cut short)")
     if isinstance(exc, rawpy.LibRawIOError):
         return "cannot read the RAW data (file truncated or unreadable)"
     if isinstance(exc, rawpy.LibRawDataError):
@@ -255,15 +328,8 @@ def _libraw_reason(exc: Exception) -> str:
 
 def _read_plain_grey(path: Path) -> np.ndarray:
     """PNG/TIFF/JPEG -> (H, W) float32 in [0, 1] (not linearised, orientation ignored)."""
-    _require_file(path)
-    flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
-    img = cv2.imread(str(path), flags)
-    if img is None:
-        raise InputError(f"{path}: not a readable image (RAW, PNG, TIFF or JPEG expected)")
-    if img.dtype not in (np.uint8, np.uint16):
-        raise InputError(f"{path}: {img.dtype} samples (8- or 16-bit integer expected)")
-    # to_grey gives [0, 255] for both depths (16-bit divided by 257).
-    return np.clip(to_grey(img, str(path)) * np.float32(1.0 / 255.0), 0.0, 1.0)
+    # load_grey gives [0, 255] for both depths (16-bit divided by 257).
+    return np.clip(load_grey(path) * np.float32(1.0 / 255.0), 0.0, 1.0)
 
 
 def _cache_path(cache_dir: Path | None, sha256: str | None) -> Path | None:

@@ -9,6 +9,7 @@ Layout of ``capture/<session>/`` (see ``docs/sessions.md``)::
     raw/              the original files, copied in byte for byte; rigkit never
                       modifies or deletes anything here
     derived/          decoded RAW frames, cached by content hash (safe to delete)
+    .staging/         a frame being checked on its way into raw/ (emptied afterwards)
     results/          the newest ``rigkit process`` output, replaced as a whole
     comparisons.csv   rangefinder-vs-estimate rows, appended by every run
     history.log       append-only log of everything rigkit did to the session
@@ -20,8 +21,12 @@ and written atomically, so the file is always either the old or the new version)
 
 from __future__ import annotations
 
+import fcntl
+import os
 import re
-from collections.abc import Mapping
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from functools import cached_property
@@ -42,6 +47,10 @@ RAW_DIR = "raw"
 DERIVED_DIR = "derived"
 RESULTS_DIR = "results"
 HISTORY_FILE = "history.log"
+STAGING_DIR = ".staging"
+LOCK_FILE = ".lock"
+EDIT_WAIT_S = 20.0
+"""How long a change to a session waits for another one to finish before it gives up."""
 DEFAULT_WINDOW_PX = 9
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
@@ -187,6 +196,51 @@ def save_session(session: Session) -> None:
         session_to_data(session), sort_keys=False, allow_unicode=True, default_flow_style=None
     )
     write_text(session.yaml_path, text)
+
+
+@contextmanager
+def session_lock(path: Path, action: str, wait_s: float = EDIT_WAIT_S) -> Iterator[None]:
+    """Hold the session folder ``path``'s lock for ``action`` (e.g. ``process``,
+    ``add-frame``): every change to a session is made under it, reading
+    ``session.yaml`` afresh inside, so two changes at once never lose one another.
+    Waits up to ``wait_s`` seconds for another holder, then InputError naming it ("busy:
+    being processed by PID 4242 since ..."). The lock is an ``flock`` on ``.lock``,
+    which the operating system releases when its holder dies: a crash leaves nothing to
+    clean up."""
+    try:
+        handle = open(path / LOCK_FILE, "a+")  # closed (and so released) below
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write to the session ({exc.strerror})") from None
+    with handle:
+        deadline = time.monotonic() + wait_s
+        while True:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise InputError(f"{path}: busy: {_holder(handle)}; try again when it "
+                                     "is done") from None
+                time.sleep(0.05)
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{os.getpid()} {utc_now()} {action}\n")
+        handle.flush()
+        try:
+            yield
+        finally:
+            handle.truncate(0)  # a holder's name outlives it only if it is killed
+
+
+def _holder(handle: Any) -> str:
+    """Who holds the lock, from what its holder wrote into the lock file."""
+    handle.seek(0)
+    pid, _, rest = handle.read(200).strip().partition(" ")
+    since, _, action = rest.partition(" ")
+    if not pid.isdigit():
+        return "another rigkit command holds it"
+    doing = "being processed" if action == "process" else f"{action or 'a change'} running"
+    return f"{doing} by PID {pid} since {since}"
 
 
 def log_event(session_path: Path, action: str, detail: str) -> None:

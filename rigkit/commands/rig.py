@@ -10,13 +10,10 @@ from pathlib import Path
 from rigkit.commands import count
 from rigkit.reporting.rig_check import format_check
 from rigkit.rig import RigProfile, load_rig
-from rigkit.rig.budget import (
-    DISPARITY_ERROR_PX,
-    SHIMMER_PX,
-    Finding,
-    check_rig,
-    check_to_dict,
-)
+from rigkit.rig.budget import DISPARITY_ERROR_PX
+from rigkit.rig.bursts import SHIMMER_PX
+from rigkit.rig.check import check_rig, check_to_dict
+from rigkit.rig.findings import Finding
 
 DEFAULT_RANGE_M = 300.0
 
@@ -158,6 +155,6 @@ def run_check(args: argparse.Namespace) -> int:
 def _capture_findings(profile: RigProfile, frames: Sequence[Path] | None) -> list[Finding]:
     if frames is None:
         return []
-    from rigkit.capture.checks import check_capture
+    from rigkit.capture.checks import check_capture, size_findings
 
-    return check_capture(profile, frames)
+    return check_capture(profile, frames) + size_findings(profile, frames)

@@ -19,6 +19,7 @@ Three granularities:
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import secrets
 import shutil
@@ -29,11 +30,42 @@ from typing import BinaryIO
 
 import numpy as np
 
+from rigkit.errors import InputError
+
 #: What :func:`write_file` writes: text (UTF-8), bytes, or an array (``.png``: BGR or
 #: grey uint8/uint16; ``.npy``: any array).
 Content = str | bytes | np.ndarray
 
 _RETIRED = "old"
+
+
+def file_sha256(path: Path) -> str:
+    """Hex SHA-256 of a file's bytes, read in 1 MiB blocks; InputError naming the file
+    when it cannot be read."""
+    digest = hashlib.sha256()
+    try:
+        with Path(path).open("rb") as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                digest.update(block)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return digest.hexdigest()
+
+
+def check_writable_folder(folder: Path, what: str) -> None:
+    """Create ``folder`` if need be and make sure files can be written in it, before
+    long work whose result would go there; InputError naming ``what`` otherwise."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise InputError(f"{what}: {folder} is a file, not a folder") from None
+    except OSError as exc:
+        raise InputError(f"{what}: cannot create {folder} ({exc.strerror})") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{what}: cannot write in {folder} (permission denied or read-only)")
 
 
 def temp_file(folder: Path, name: str) -> tuple[int, Path]:
@@ -124,7 +156,7 @@ def _write_new(path: Path, content: Content) -> None:
         os.fsync(handle.fileno())
 
 
-def _fsync_folder(folder: Path) -> None:
+def fsync_folder(folder: Path) -> None:
     """Make renames inside ``folder`` durable (best effort: not every system allows it)."""
     with contextlib.suppress(OSError):
         fd = os.open(folder, os.O_RDONLY)
@@ -145,7 +177,7 @@ def write_together(folder: Path, files: Mapping[str, Content]) -> None:
             _write_new(Path(tmp) / name, content)
         for name in files:
             os.replace(Path(tmp) / name, folder / name)
-    _fsync_folder(folder)
+    fsync_folder(folder)
 
 
 def replace_folder(
@@ -167,13 +199,13 @@ def replace_folder(
     try:
         for file_name, content in files.items():
             _write_new(staging / file_name, content)
-        _fsync_folder(staging)
+        fsync_folder(staging)
         current = parent / name
         retired = parent / f".{name}-{_RETIRED}-{stage_id}"
         if current.exists():
             os.rename(current, retired)
         os.rename(staging, current)
-        _fsync_folder(parent)
+        fsync_folder(parent)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise

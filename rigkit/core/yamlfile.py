@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Hashable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 
@@ -86,6 +86,9 @@ def unknown_key_problem(key: str, allowed: Sequence[str]) -> str:
     return f"unknown key; {suggestion}allowed here: {', '.join(allowed)}"
 
 
+_T = TypeVar("_T")
+
+
 @dataclass(frozen=True)
 class KeyPath:
     """Where a value sits in a YAML file (file and dotted key), for checks and errors."""
@@ -121,6 +124,13 @@ class KeyPath:
             if key not in value:
                 raise self.child(key).error("missing")
         return value
+
+    def optional(
+        self, keys: dict[str, Any], name: str, read: Callable[[Any, KeyPath], _T]
+    ) -> _T | None:
+        """``read(value, key)`` of the key ``name`` of this mapping's ``keys`` when it is
+        present, else None."""
+        return read(keys[name], self.child(name)) if name in keys else None
 
     def sequence(self, value: Any) -> list[Any]:
         """A list (``None``, an empty YAML value, is an empty list)."""

@@ -36,7 +36,7 @@ from scipy.optimize import least_squares
 
 from rigkit.errors import PipelineError
 from rigkit.geometry import rotvec_to_matrix
-from rigkit.pipeline.checks import check_magnification
+from rigkit.pipeline.checks import affine_scale, check_magnification
 from rigkit.pipeline.depth import rectified_rays, triangulate_z
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, apply_homography, scaling
@@ -134,7 +134,7 @@ def back_view_start(
     rotation vector (3,) (rad, left -> back, small angles) that its turn and its shift
     of the image ``centre`` (px) imply for focal length ``f`` (px)."""
     A = m.affine[:, :2]
-    s = float(np.sqrt(abs(np.linalg.det(A))))
+    s = affine_scale(m.affine)
     z0 = check_magnification(s, c_lb)
     turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
     du, dv = A @ centre + m.affine[:, 2] - s * centre

@@ -18,6 +18,42 @@ from rigkit.pipeline.rectify import Rectification, apply_homography
 
 MIN_PARALLAX_PX = 0.5  # spread (5th-95th percentile) of matched disparities
 MAX_IMPLIED_RANGE_M = 50_000.0  # beyond this, the back view shows no magnification
+MAX_RIGHT_SCALE_CHANGE = 0.01
+"""Left and right views are at the same distance: a larger scale change is zoom."""
+
+
+def affine_scale(affine: np.ndarray) -> float:
+    """The scale of a (2, 3) affine map between two views (other / left size)."""
+    return float(np.sqrt(abs(np.linalg.det(affine[:, :2]))))
+
+
+def roles_problem(right: float, back: float) -> str | None:
+    """Why views of scale ``right`` and ``back`` (each against the left view) cannot be
+    the right and the back view, or None. The back camera, C_lb behind, sees the scene
+    smaller by C_lb / (z + C_lb); the right one, beside the left, at the same size. A
+    right view smaller than the back one is the back frame: the two were given the
+    wrong way round. (Ask only once the back view shows a magnification at all,
+    :func:`check_magnification`: with neither moved, the smaller is a matter of noise.)"""
+    if right >= back:
+        return None
+    return (f"the right view is {right:.5f}x the left one and the back view {back:.5f}x: "
+            "the right frame looks like the one taken behind; were right and back swapped?")
+
+
+def check_roles(lr: Matches, lb: Matches, baseline_lb_m: float) -> None:
+    """PipelineError when the back view (matches ``lb``) shows no magnification
+    (:func:`check_magnification`), or the right view (``lr``) is not at the left one's
+    distance: smaller than the back view (:func:`roles_problem`), or zoomed."""
+    right, back = affine_scale(lr.affine), affine_scale(lb.affine)
+    check_magnification(back, baseline_lb_m)
+    problem = roles_problem(right, back)
+    if problem is not None:
+        raise PipelineError(problem)
+    if abs(right - 1.0) > MAX_RIGHT_SCALE_CHANGE:
+        raise PipelineError(
+            f"the right view is {right:.4f}x the left one: the zoom changed between them "
+            "(set it back to the left frame's and take the right frame again)"
+        )
 
 
 def check_distinct(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:

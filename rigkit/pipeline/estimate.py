@@ -11,7 +11,7 @@ import numpy as np
 from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
-from rigkit.pipeline.checks import check_distinct, check_parallax
+from rigkit.pipeline.checks import check_distinct, check_parallax, check_roles
 from rigkit.pipeline.depth import to_left
 from rigkit.pipeline.distortion import LensFit, fit_distortion
 from rigkit.pipeline.features import Matches, match_to, prepare_left
@@ -195,6 +195,7 @@ def estimate_depth(
     raw_lr = match_to(ref, right, "left/right", s)
     raw_lb = match_to(ref, back, "left/back", s)
     check_distinct(left, right, back)  # after matching: a blank scene says so first
+    check_roles(raw_lr, raw_lb, rig.baseline_lb_m)
     lap("matching", 0.2)
     lens, lens_fit = _lens(raw_lr, raw_lb, rig, size, s)
     if lens_fit is not None:

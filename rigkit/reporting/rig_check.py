@@ -7,13 +7,9 @@ import textwrap
 from collections.abc import Sequence
 
 from rigkit.core.tables import render_table
-from rigkit.rig.budget import (
-    RELATIVE_ROTATION_DEG,
-    ErrorModel,
-    RigCheck,
-    affine_residual_px,
-    corner_distortion,
-)
+from rigkit.rig.budget import RELATIVE_ROTATION_DEG, ErrorModel, corner_distortion
+from rigkit.rig.check import RigCheck
+from rigkit.rig.formulas import affine_residual_px
 from rigkit.rig.optics import fov_deg
 from rigkit.rig.profile import CAMERA_ROLES, RigProfile
 

@@ -26,65 +26,33 @@ along the viewing direction.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, TypeVar
+from typing import Any
 
 import yaml
 
 from rigkit.core.yamlfile import KeyPath, read_strict_yaml
 from rigkit.errors import InputError
-from rigkit.geometry import NO_DISTORTION, Distortion
+from rigkit.geometry import Distortion
 from rigkit.pipeline import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings, setting_names, setting_type
-from rigkit.rig.lensfun import LensfunProfile, lensfun_profile
-from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
+from rigkit.rig.camera import CameraSpec, camera_to_dict, read_camera
 
 PROFILE_VERSION = 1
 CAMERA_ROLES = ("left", "right", "back")
 FOCAL_AGREEMENT = 0.001
 """The three cameras' focal lengths may differ by at most this fraction (0.1 %)."""
-ASPECT_AGREEMENT = 0.01
-"""``sensor_mm`` and ``resolution`` must have the same aspect ratio within 1 % (square pixels)."""
-FOCAL_FORMS = ("mm", "equivalent_35mm_mm", "px")
-
-_MAX_SENSOR_MM = 100.0
-_MAX_FOCAL_MM = 5000.0
-_MAX_EQUIVALENT_MM = 20000.0
-_MAX_RESOLUTION_PX = 100_000
 _MAX_BASELINE_M = 100.0
 _MAX_OFFSET_M = 10.0
 _MAX_RANGE_M = 100_000.0
 _MAX_BAUD = 4_000_000
 _PROTOCOL_PATTERN = re.compile(r"[a-z0-9][a-z0-9_-]*")
-_T = TypeVar("_T")
 
 
 # --------------------------------------------------------------------------- the profile
-
-
-@dataclass(frozen=True)
-class CameraSpec:
-    """One camera (left, right or back).
-
-    ``focal_px`` is the pinhole focal length in pixels (fx = fy);
-    ``focal_tolerance`` its relative uncertainty as a fraction (0.01 = 1 %);
-    ``principal_point_px`` is (cx, cy) in pixels from the top-left pixel's corner,
-    None meaning the image centre. ``focal_given`` keeps the form the profile used,
-    e.g. ``("equivalent_35mm_mm", 400.0)``, so a profile is written back as it was read.
-    """
-
-    model: str
-    sensor_mm: tuple[float, float] | None
-    resolution: tuple[int, int]
-    focal_px: float
-    focal_tolerance: float
-    principal_point_px: tuple[float, float] | None
-    focal_given: tuple[str, float] | None = None
-    distortion: Distortion = NO_DISTORTION
-    lens_profile: LensfunProfile | None = None
 
 
 @dataclass(frozen=True)
@@ -237,24 +205,18 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
         cameras=_cameras(keys, top),
         baseline_lr=_baseline(pair["C_lr"], baselines.child("C_lr")),
         baseline_lb=_baseline(pair["C_lb"], baselines.child("C_lb")),
-        back_offset_m=_optional(keys, "back_offset", top, _back_offset),
-        rangefinder=_optional(keys, "rangefinder", top, _rangefinder),
+        back_offset_m=top.optional(keys, "back_offset", _back_offset),
+        rangefinder=top.optional(keys, "rangefinder", _rangefinder),
         notes=top.child("notes").text(keys["notes"]) if "notes" in keys else "",
-        nominal_range_m=_optional(keys, "nominal_range_m", top, _nominal_range),
+        nominal_range_m=top.optional(keys, "nominal_range_m", _nominal_range),
         source=path,
-        pipeline=_optional(keys, "pipeline", top, _pipeline) or {},
+        pipeline=top.optional(keys, "pipeline", _pipeline) or {},
     )
 
 
 def _read_yaml(path: Path) -> Any:
     return read_strict_yaml(path, "rig profile")
 
-
-def _optional(
-    keys: dict[str, Any], name: str, parent: KeyPath, read: Callable[[Any, KeyPath], _T]
-) -> _T | None:
-    """``read(value, key)`` when ``name`` is present, else None."""
-    return read(keys[name], parent.child(name)) if name in keys else None
 
 
 def _check_version(value: Any, key: KeyPath) -> None:
@@ -269,120 +231,13 @@ def _cameras(keys: dict[str, Any], top: KeyPath) -> Mapping[str, CameraSpec]:
             "or 'cameras' (with left, right and back), not both or neither"
         )
     if "camera" in keys:
-        shared = _camera(keys["camera"], top.child("camera"))
+        shared = read_camera(keys["camera"], top.child("camera"))
         return MappingProxyType(dict.fromkeys(CAMERA_ROLES, shared))
     each = top.child("cameras")
     specs = each.mapping(keys["cameras"], required=CAMERA_ROLES)
-    return MappingProxyType({role: _camera(specs[role], each.child(role)) for role in CAMERA_ROLES})
-
-
-def _camera(value: Any, key: KeyPath) -> CameraSpec:
-    keys = key.mapping(
-        value,
-        required=("model", "resolution", "focal_length"),
-        optional=("sensor_mm", "principal_point_px", "distortion"),
+    return MappingProxyType(
+        {role: read_camera(specs[role], each.child(role)) for role in CAMERA_ROLES}
     )
-    resolution = _resolution(keys["resolution"], key.child("resolution"))
-    sensor = _optional(keys, "sensor_mm", key, _sensor)
-    if sensor is not None:
-        _check_aspect(sensor, resolution, key)
-    form, given, tolerance = _focal_length(keys["focal_length"], key.child("focal_length"))
-    if form == "px":
-        focal = given
-    elif sensor is None:
-        raise key.child("sensor_mm").error(f"missing: needed to convert focal_length.{form}")
-    elif form == "mm":
-        focal = focal_px_from_mm(given, sensor[0], resolution[0])
-    else:
-        focal = focal_px_from_35mm_equivalent(given, sensor, resolution)
-    principal = _optional(keys, "principal_point_px", key, _principal_point)
-    if principal is not None:
-        _check_principal_point(principal, resolution, key.child("principal_point_px"))
-    lens_profile = None
-    if isinstance(keys.get("distortion"), dict) and "lensfun" in keys["distortion"]:
-        lens_profile = _lensfun(
-            keys["distortion"], key.child("distortion"), resolution, focal, sensor
-        )
-    return CameraSpec(
-        model=key.child("model").line(keys["model"]),
-        sensor_mm=sensor,
-        resolution=resolution,
-        focal_px=focal,
-        focal_tolerance=tolerance,
-        principal_point_px=principal,
-        focal_given=(form, given),
-        distortion=lens_profile.distortion
-        if lens_profile
-        else _optional(keys, "distortion", key, _distortion) or NO_DISTORTION,
-        lens_profile=lens_profile,
-    )
-
-
-def _resolution(value: Any, key: KeyPath) -> tuple[int, int]:
-    width, height = key.pair(value, "width, height")
-    return (
-        key.integer(width, "pixels", _MAX_RESOLUTION_PX),
-        key.integer(height, "pixels", _MAX_RESOLUTION_PX),
-    )
-
-
-def _sensor(value: Any, key: KeyPath) -> tuple[float, float]:
-    width, height = key.pair(value, "width, height")
-    hint = "sensor_mm is in millimetres; is this in micrometres or pixels?"
-    return (
-        key.bounded(width, "mm", _MAX_SENSOR_MM, hint=hint),
-        key.bounded(height, "mm", _MAX_SENSOR_MM, hint=hint),
-    )
-
-
-def _check_aspect(sensor: tuple[float, float], resolution: tuple[int, int], key: KeyPath) -> None:
-    sensor_aspect = sensor[0] / sensor[1]
-    image_aspect = resolution[0] / resolution[1]
-    if abs(sensor_aspect / image_aspect - 1.0) > ASPECT_AGREEMENT:
-        suggested = sensor[0] * resolution[1] / resolution[0]
-        raise key.child("sensor_mm").error(
-            f"aspect {sensor_aspect:.4f} does not match resolution "
-            f"{resolution[0]}x{resolution[1]} (aspect {image_aspect:.4f}); give the area the "
-            f"image covers, e.g. [{sensor[0]:g}, {suggested:.5g}]",
-            list(sensor),
-        )
-
-
-def _focal_length(value: Any, key: KeyPath) -> tuple[str, float, float]:
-    """(form, value as given, tolerance fraction) read from a ``focal_length`` mapping."""
-    keys = key.mapping(value, required=("tolerance_fraction",), optional=FOCAL_FORMS)
-    forms = [form for form in FOCAL_FORMS if form in keys]
-    if not forms:
-        raise key.error(f"missing: give one of {', '.join(FOCAL_FORMS)}")
-    if len(forms) > 1:
-        raise key.error(
-            f"give only one of {', '.join(FOCAL_FORMS)}", {form: keys[form] for form in forms}
-        )
-    form = forms[0]
-    high = {"mm": _MAX_FOCAL_MM, "equivalent_35mm_mm": _MAX_EQUIVALENT_MM, "px": 1e7}[form]
-    unit = "pixels" if form == "px" else "mm"
-    given = key.child(form).bounded(keys[form], unit, high)
-    return form, given, _tolerance_fraction(keys["tolerance_fraction"], key)
-
-
-def _tolerance_fraction(value: Any, parent: KeyPath) -> float:
-    key = parent.child("tolerance_fraction")
-    number = key.number(value, "fraction")
-    if not 0.0 <= number < 0.5:
-        raise key.error("must be a fraction in [0, 0.5) -- 0.01 means 1 %", value)
-    return number
-
-
-def _principal_point(value: Any, key: KeyPath) -> tuple[float, float]:
-    cx, cy = key.pair(value, "cx, cy")
-    return key.number(cx, "pixels"), key.number(cy, "pixels")
-
-
-def _check_principal_point(
-    point: tuple[float, float], resolution: tuple[int, int], key: KeyPath
-) -> None:
-    if not (0 <= point[0] <= resolution[0] and 0 <= point[1] <= resolution[1]):
-        raise key.error(f"must lie inside the {resolution[0]}x{resolution[1]} image", list(point))
 
 
 def _baseline(value: Any, key: KeyPath) -> Baseline:
@@ -429,7 +284,7 @@ def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
         protocol=protocol,
         port=port,
         baud=baud,
-        offset_m=_optional(keys, "offset", key, _rangefinder_offset),
+        offset_m=key.optional(keys, "offset", _rangefinder_offset),
     )
 
 
@@ -440,47 +295,6 @@ def _rangefinder_offset(value: Any, key: KeyPath) -> tuple[float, float, float]:
         _signed_offset(keys["up_m"], key.child("up_m")),
         _signed_offset(keys["forward_m"], key.child("forward_m")),
     )
-
-
-_DISTORTION_TERMS = ("k1", "k2", "p1", "p2", "k3")
-
-
-def _distortion(value: Any, key: KeyPath) -> Distortion:
-    """``{k1: .., k2: .., p1: .., p2: .., k3: ..}`` (any subset; OpenCV's model on
-    normalised image coordinates about the image centre)."""
-    terms = key.mapping(value, required=(), optional=_DISTORTION_TERMS)
-    k1, k2, p1, p2, k3 = (
-        key.child(t).number(terms.get(t, 0.0), "normalised units") for t in _DISTORTION_TERMS
-    )
-    return (k1, k2, p1, p2, k3)
-
-
-def _lensfun(
-    value: Any,
-    key: KeyPath,
-    resolution: tuple[int, int],
-    focal_px: float,
-    sensor: tuple[float, float] | None,
-) -> LensfunProfile:
-    """``{lensfun: CAMERA, lens: LENS, focal_mm: F}``: the distortion of lensfun's
-    profile (``lens`` only for interchangeable lenses; ``focal_mm`` the real focal
-    length, by default the profile's focal length over the sensor width)."""
-    keys = key.mapping(value, required=("lensfun",), optional=("lens", "focal_mm"))
-    if "focal_mm" in keys:
-        focal_mm = key.child("focal_mm").bounded(keys["focal_mm"], "mm", _MAX_FOCAL_MM)
-    elif sensor is not None:
-        focal_mm = focal_px * sensor[0] / resolution[0]
-    else:
-        raise key.child("focal_mm").error(
-            "missing: give the real focal length in mm (or camera.sensor_mm) to look the "
-            "lens up"
-        )
-    lens = key.child("lens").line(keys["lens"]) if "lens" in keys else None
-    camera = key.child("lensfun").line(keys["lensfun"])
-    try:
-        return lensfun_profile(camera, focal_mm, resolution, focal_px, lens)
-    except InputError as exc:
-        raise key.child("lensfun").error(str(exc)) from None
 
 
 def _pipeline(value: Any, key: KeyPath) -> Mapping[str, float]:
@@ -513,9 +327,9 @@ def rig_to_dict(profile: RigProfile) -> dict[str, Any]:
         data["nominal_range_m"] = profile.nominal_range_m
     specs = [profile.cameras[role] for role in CAMERA_ROLES]
     if all(spec == specs[0] for spec in specs):
-        data["camera"] = _camera_to_dict(specs[0])
+        data["camera"] = camera_to_dict(specs[0])
     else:
-        data["cameras"] = {role: _camera_to_dict(profile.cameras[role]) for role in CAMERA_ROLES}
+        data["cameras"] = {role: camera_to_dict(profile.cameras[role]) for role in CAMERA_ROLES}
     data["baselines"] = {
         "C_lr": _baseline_to_dict(profile.baseline_lr),
         "C_lb": _baseline_to_dict(profile.baseline_lb),
@@ -537,23 +351,6 @@ def dump_rig(profile: RigProfile) -> str:
     return yaml.safe_dump(
         rig_to_dict(profile), sort_keys=False, default_flow_style=None, allow_unicode=True
     )
-
-
-def _camera_to_dict(spec: CameraSpec) -> dict[str, Any]:
-    form, value = spec.focal_given or ("px", spec.focal_px)
-    data: dict[str, Any] = {"model": spec.model}
-    if spec.sensor_mm is not None:
-        data["sensor_mm"] = list(spec.sensor_mm)
-    data["resolution"] = list(spec.resolution)
-    data["focal_length"] = {form: value, "tolerance_fraction": spec.focal_tolerance}
-    if spec.principal_point_px is not None:
-        data["principal_point_px"] = list(spec.principal_point_px)
-    if spec.lens_profile is not None:
-        lf = spec.lens_profile
-        data["distortion"] = {"lensfun": lf.camera, "lens": lf.lens, "focal_mm": lf.focal_mm}
-    elif spec.distortion != NO_DISTORTION:
-        data["distortion"] = dict(zip(_DISTORTION_TERMS, spec.distortion, strict=True))
-    return data
 
 
 def _baseline_to_dict(baseline: Baseline) -> dict[str, float]:

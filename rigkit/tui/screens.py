@@ -32,11 +32,13 @@ from rigkit.capture import (
     utc_now,
 )
 from rigkit.capture.comparisons import Comparison, latest_run
-from rigkit.capture.field import Check, check_image, frames_at, next_step, reading_from_device
+from rigkit.capture.field import check_image, frames_at, next_step, reading_from_device
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow
 from rigkit.reporting.verdict import judge, offset_note
-from rigkit.rig.budget import budget_row, check_rig
+from rigkit.rig.budget import budget_row
+from rigkit.rig.check import check_rig
+from rigkit.rig.findings import Finding
 from rigkit.rig.optics import fov_deg
 from rigkit.tui.previews import preview_widget
 from rigkit.tui.widgets import Mark, PixelView
@@ -79,7 +81,7 @@ def session_of(screen: Screen[Any]) -> Session:
     return session
 
 
-def check_lines(checks: list[Check]) -> str:
+def check_lines(checks: list[Finding]) -> str:
     """Checks as Rich markup: a tick or a cross, the message, and what to redo."""
     lines = []
     for check in checks:
@@ -292,7 +294,7 @@ class PositionScreen(StepScreen):
         self.query_one("#checks", Static).update(
             f"[b $error]✘ {_escape(message)}[/]\n{self._shown}")
 
-    def show_checks(self, checks: list[Check], image: np.ndarray) -> None:
+    def show_checks(self, checks: list[Finding], image: np.ndarray) -> None:
         """The newest frame's checks, and its preview."""
         frames = frames_at(session_of(self), self.position)
         burst = f" ({len(frames)} frames)" if len(frames) > 1 else ""

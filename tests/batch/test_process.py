@@ -54,7 +54,7 @@ def test_results_folder_is_complete(processed_session: Path) -> None:
     assert depth.shape == (720, 960) and depth.dtype == np.float32
     meta = json.loads((results / "depth.json").read_text())
     assert meta["run_id"] == "20260101T000000Z-0001"
-    assert meta["frames"]["left"]["sha256"] == load_session(processed_session).frames[
+    assert meta["frames"]["left"][0]["sha256"] == load_session(processed_session).frames[
         "left"].sha256
     assert "run 20260101T000000Z-0001: ok" in (processed_session / "history.log").read_text()
     assert not list(processed_session.glob(".results*"))
@@ -176,7 +176,7 @@ def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Pat
     copy = copy_session(synth_session, tmp_path)
     with open(copy / ".lock", "a") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
-        with pytest.raises(InputError, match="being processed by another rigkit run"):
+        with pytest.raises(InputError, match="busy: another rigkit command holds it"):
             process_session(copy, "20260107T000000Z-0007")
     assert not (copy / "results").exists()
 

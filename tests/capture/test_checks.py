@@ -7,10 +7,11 @@ from typing import Any
 
 import pytest
 
-from rigkit.capture.checks import check_capture
+from rigkit.capture.checks import check_capture, size_findings
 from rigkit.capture.exif import read_exif
 from rigkit.errors import InputError
 from rigkit.rig import load_rig
+from tests.conftest import rig_file
 
 ROOT = Path(__file__).resolve().parents[2]
 P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
@@ -65,7 +66,6 @@ def test_read_exif(tmp_path: Path, suffix: str) -> None:
     assert info.exposure_time_s == pytest.approx(0.002)
     assert info.f_number == pytest.approx(5.6)
     assert info.iso == 200.0
-    assert info.image_size_px == (4608, 3456)
     assert info.has_exif
 
 
@@ -121,19 +121,31 @@ def test_capture_times_too_far_apart(tmp_path: Path) -> None:
     assert [f.code for f in check_capture(load_rig(P1000), frames)] == ["capture.bad_time"]
 
 
-def test_capture_size_model_and_missing_fields(tmp_path: Path) -> None:
+def test_capture_model_and_missing_fields(tmp_path: Path) -> None:
     frames = [
-        _frame(tmp_path / "L.jpg", size=(3456, 4608)),
+        _frame(tmp_path / "L.jpg", size=(3456, 4608)),  # an EXIF size is not checked
         _frame(tmp_path / "R.jpg", model="D850"),
         _frame(tmp_path / "B.jpg", iso=None),
     ]
     findings = check_capture(load_rig(P1000), frames)
     assert {(f.code, f.frame) for f in findings} == {
-        ("capture.size_vs_profile", "left"),
         ("capture.model_vs_profile", "right"),
         ("capture.missing_field", "back"),
     }
-    assert any("rotated to portrait" in f.message for f in findings)
+
+
+def test_sizes_are_the_decoded_ones_not_the_exif_ones(tmp_path: Path) -> None:
+    # EXIF claims the profile's 4608x3456 (as a preview's tags may claim anything); the
+    # decoded frames are 8x6 and, turned, 6x8: the check quotes what was decoded.
+    frames = [_frame(tmp_path / "L.jpg"), _frame(tmp_path / "R.jpg")]
+    Image.new("L", (6, 8)).save(tmp_path / "B.png")
+    rig = rig_file(tmp_path, (8, 6))
+    assert [f.frame for f in size_findings(load_rig(rig), [*frames, tmp_path / "B.png"])] == \
+        ["back"]
+    (found,) = size_findings(load_rig(rig), [*frames, tmp_path / "B.png"])
+    assert "decoded image 6x8 px differs from the profile's 8x6 px (turned to portrait?)" in \
+        found.message
+    assert len(size_findings(load_rig(P1000), frames + frames[:1])) == 3
 
 
 def test_capture_focal_in_real_mm_uses_the_sensor_width(tmp_path: Path) -> None:

@@ -25,12 +25,18 @@ from rigkit.capture.field import (
     onsite_checks,
     range_from_magnification,
     right_checks,
-    same_frame_check,
 )
+from rigkit.errors import InputError
 from rigkit.rig import load_rig
+from tests.conftest import rig_file
 
 ROOT = Path(__file__).resolve().parents[2]
 SYNTHETIC = ROOT / "rigs" / "synthetic.yaml"
+
+
+def new_session(tmp_path: Path, size: tuple[int, int] = (320, 240)):
+    """A session whose rig (the synthetic one's view) is for frames of ``size``."""
+    return create_session(tmp_path / "s", rig_file(tmp_path, size))
 
 
 def texture(width: int = 320, height: int = 240, seed: int = 0) -> np.ndarray:
@@ -116,22 +122,22 @@ def _exif_png(path: Path, image: np.ndarray, iso: int) -> Path:
     return path
 
 
-def test_session_checks_catch_the_same_frame_twice(tmp_path: Path) -> None:
-    session = create_session(tmp_path / "s", SYNTHETIC)
+def test_the_same_frame_twice_is_refused_on_arrival(tmp_path: Path) -> None:
+    session = new_session(tmp_path)
     left = _png(tmp_path / "a.png", texture())
     copy = tmp_path / "b.png"
     shutil.copy(left, copy)
     assert next_step(session) == "left"
     session = add_position_frame(session, "left", left)
-    session = add_position_frame(session, "right", copy)
-    assert next_step(session) == "back"
-    same = same_frame_check(session, "right")
-    assert same is not None and not same.ok and "same file as the left frame" in same.message
-    assert _failed(onsite_checks(session, "right")).keys() == {"same_frame"}
+    with pytest.raises(InputError, match="is the same file as raw/a.png, given for left and "
+                       "right"):
+        add_position_frame(session, "right", copy)
+    assert next_step(load_session(session.path)) == "right"
+    assert sorted(p.name for p in (session.path / "raw").iterdir()) == ["a.png"]
 
 
 def test_a_second_frame_joins_the_burst(tmp_path: Path) -> None:
-    session = create_session(tmp_path / "s", SYNTHETIC)
+    session = new_session(tmp_path)
     first = _png(tmp_path / "one.png", texture(seed=1))
     second = _png(tmp_path / "two.png", texture(seed=2))
     session = add_position_frame(session, "left", first)
@@ -145,12 +151,11 @@ def test_a_second_frame_joins_the_burst(tmp_path: Path) -> None:
 
 
 def test_a_retake_after_a_failed_check_replaces_the_position(tmp_path: Path) -> None:
-    session = create_session(tmp_path / "s", SYNTHETIC)
+    session = new_session(tmp_path)
     left = _png(tmp_path / "a.png", texture(seed=1))
-    copy = tmp_path / "b.png"
-    shutil.copy(left, copy)
+    unmoved = _png(tmp_path / "b.png", similarity(texture(seed=1), 1.0, 0.3, (5.0, 2.0)))
     session = add_position_frame(session, "left", left)
-    session = add_position_frame(session, "right", copy)  # the same frame: fails
+    session = add_position_frame(session, "right", unmoved)  # no parallax: fails
     assert not all(c.ok for c in onsite_checks(session, "right"))
     retake = _png(tmp_path / "c.png", texture(seed=3))
     session = add_position_frame(session, "right", retake)
@@ -168,7 +173,7 @@ def _shimmered(scene: np.ndarray, rms_px: float, seed: int) -> np.ndarray:
 
 
 def test_a_burst_measures_the_shimmer_and_the_frames_it_calls_for(tmp_path: Path) -> None:
-    session = create_session(tmp_path / "s", SYNTHETIC)  # nominal range 300 m
+    session = new_session(tmp_path, (2048, 1536))  # nominal range 300 m
     scene = texture(2048, 1536, seed=4)
     first, second = (_png(tmp_path / f"{k}.png", _shimmered(scene, 0.15, k)) for k in (1, 2))
     session = add_position_frame(session, "left", first)
@@ -188,7 +193,7 @@ def test_a_burst_measures_the_shimmer_and_the_frames_it_calls_for(tmp_path: Path
 
 
 def test_exif_check_names_the_setting_that_changed(tmp_path: Path) -> None:
-    session = create_session(tmp_path / "s", SYNTHETIC)
+    session = new_session(tmp_path)
     session = add_position_frame(session, "left", _exif_png(tmp_path / "l.png", texture(), 100))
     assert exif_check(session, "left").ok
     right = _exif_png(tmp_path / "r.png", similarity(texture(), 1.0, 0.5, (6, 0)), 400)
@@ -215,7 +220,7 @@ def test_a_device_reading_is_recorded_with_its_source_and_frame() -> None:
 def test_exposure_check_catches_blown_highlights(tmp_path: Path) -> None:
     from rigkit.capture.field import exposure_check
 
-    session = create_session(tmp_path / "s", SYNTHETIC)
+    session = new_session(tmp_path)
     session = add_position_frame(session, "left", _png(tmp_path / "ok.png", 0.9 * texture()))
     assert exposure_check(session, frames_at(session, "left")[-1]).ok
     blown = texture()

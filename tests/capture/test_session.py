@@ -20,7 +20,7 @@ from rigkit.capture import (
 from rigkit.cli import main
 from rigkit.errors import InputError
 from rigkit.synth import load_scene
-from tests.conftest import copy_session
+from tests.conftest import copy_session, rig_file
 
 RIG = Path(__file__).resolve().parents[2] / "rigs" / "synthetic.yaml"
 
@@ -30,9 +30,16 @@ def sha(path: Path) -> str:
 
 
 def png(path: Path, size: tuple[int, int] = (64, 48), seed: int = 0) -> Path:
+    """A textured frame (smoothed noise: a picture, not noise) of ``size`` px."""
     rng = np.random.default_rng(seed)
-    cv2.imwrite(str(path), rng.integers(0, 255, (size[1], size[0]), np.uint8))
+    noise = cv2.GaussianBlur(rng.random((size[1], size[0])), (0, 0), 2.0)
+    cv2.imwrite(str(path), cv2.normalize(noise, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8))
     return path
+
+
+def small_rig(folder: Path) -> Path:
+    """The synthetic rig for the 64x48 px frames of :func:`png`."""
+    return rig_file(folder, (64, 48))
 
 
 def test_new_session_keeps_a_copy_of_the_rig(tmp_path: Path) -> None:
@@ -58,7 +65,7 @@ def test_bad_rig_writes_nothing(tmp_path: Path) -> None:
 def test_add_frame_copies_byte_for_byte(tmp_path: Path) -> None:
     source = png(tmp_path / "DSC_0001.png")
     before = sha(source)
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", source)
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", source)
     frame = session.frames["left"]
     stored = tmp_path / "s" / frame.file
     assert frame.file == "raw/DSC_0001.png"
@@ -68,7 +75,7 @@ def test_add_frame_copies_byte_for_byte(tmp_path: Path) -> None:
 
 
 def test_replacing_a_frame_keeps_the_old_file(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
     with pytest.raises(InputError, match="already has a left frame"):
         add_frame(session, "left", png(tmp_path / "b.png", seed=1))
     session = add_frame(session, "left", png(tmp_path / "b.png", seed=1), replace_existing=True)
@@ -81,7 +88,7 @@ def test_same_name_different_content_is_not_overwritten(tmp_path: Path) -> None:
     (tmp_path / "day2").mkdir()
     first = png(tmp_path / "day1" / "IMG.png", seed=1)
     second = png(tmp_path / "day2" / "IMG.png", seed=2)
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", first)
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", first)
     session = add_frame(session, "right", second)
     assert session.frames["right"].file == "raw/right-IMG.png"
     assert sha(tmp_path / "s" / "raw" / "IMG.png") == sha(first)
@@ -90,7 +97,7 @@ def test_same_name_different_content_is_not_overwritten(tmp_path: Path) -> None:
 def test_unreadable_frame_never_enters_raw(tmp_path: Path) -> None:
     garbage = tmp_path / "DSC_0002.NEF"
     garbage.write_bytes(b"not a raw file" * 100)
-    session = create_session(tmp_path / "s", RIG)
+    session = create_session(tmp_path / "s", small_rig(tmp_path))
     with pytest.raises(InputError, match="DSC_0002.NEF"):
         add_frame(session, "left", garbage)
     assert list((tmp_path / "s" / "raw").iterdir()) == []
@@ -98,13 +105,13 @@ def test_unreadable_frame_never_enters_raw(tmp_path: Path) -> None:
 
 
 def test_frames_must_share_a_size(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
     with pytest.raises(InputError, match="64x48"):
         add_frame(session, "right", png(tmp_path / "b.png", size=(80, 48)))
 
 
 def test_targets_outside_the_image_and_even_windows_are_refused(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
     reading = [LaserReading(300.0, "2026-11-22T10:00:00Z", "manual")]
     with pytest.raises(InputError, match=r"outside the 64x48 left image"):
         add_target(session, "T1", (64.0, 10.0), readings=reading)
@@ -115,7 +122,7 @@ def test_targets_outside_the_image_and_even_windows_are_refused(tmp_path: Path) 
 
 
 def test_more_readings_for_a_target(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
     session = add_target(session, "mast", (10, 20), readings=[LaserReading(301.0, "t", "manual")])
     session = add_target(session, "mast", (10, 20), readings=[LaserReading(301.4, "t", "manual")])
     assert [r.slope_distance_m for r in load_session(session.path).target("mast").readings] == [
@@ -161,7 +168,7 @@ def test_bad_session_yaml_names_file_and_key(
 
 def test_cli_session_workflow(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     s = str(tmp_path / "field-1")
-    assert main(["session", "new", s, "--rig", str(RIG), "--notes", "test"]) == 0
+    assert main(["session", "new", s, "--rig", str(small_rig(tmp_path)), "--notes", "test"]) == 0
     for i, position in enumerate(("left", "right", "back")):
         frame = png(tmp_path / f"{position}.png", seed=i)
         assert main(["session", "add-frame", s, "--position", position, str(frame)]) == 0
@@ -177,7 +184,7 @@ def test_cli_session_workflow(tmp_path: Path, capsys: pytest.CaptureFixture[str]
 
 def test_cli_target_from_a_simulated_rangefinder(tmp_path: Path) -> None:
     s = tmp_path / "field-2"
-    create_session(s, RIG)
+    create_session(s, small_rig(tmp_path))
     add_frame(load_session(s), "left", png(tmp_path / "left.png"))
     code = main(["session", "add-target", str(s), "--name", "barn", "--pixel", "20", "20",
                  "--device", "sim://trupulse?distance=412.3&interval=0.01", "--shots", "2",
@@ -221,7 +228,7 @@ def test_bundled_example_records_no_machine_path() -> None:
 
 
 def test_a_burst_is_listed_in_order_and_read_back(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
     session = add_frame(session, "left", png(tmp_path / "b.png", seed=1), burst=True)
     session = add_frame(session, "left", png(tmp_path / "c.png", seed=2), burst=True)
     files = [f.file for f in session.bursts["left"]]
@@ -239,8 +246,9 @@ def test_a_burst_is_listed_in_order_and_read_back(tmp_path: Path) -> None:
 
 
 def test_a_burst_refuses_the_same_exposure_twice_and_another_size(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", RIG), "left", png(tmp_path / "a.png"))
-    with pytest.raises(InputError, match="the same image as left frame raw/a.png"):
+    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
+    with pytest.raises(InputError, match="a.png is the same file as raw/a.png, given twice in "
+                       "the burst"):
         add_frame(session, "left", tmp_path / "a.png", burst=True)
-    with pytest.raises(InputError, match="all three must match"):
+    with pytest.raises(InputError, match="80x60 px, but the rig profile synthetic is for 64x48"):
         add_frame(session, "left", png(tmp_path / "big.png", size=(80, 60)), burst=True)

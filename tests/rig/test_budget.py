@@ -12,19 +12,15 @@ import pytest
 from rigkit.errors import InputError
 from rigkit.reporting.rig_check import format_check
 from rigkit.rig import Baseline, load_rig
-from rigkit.rig.budget import (
-    ErrorModel,
+from rigkit.rig.budget import ErrorModel, budget_row, range_reaching
+from rigkit.rig.bursts import burst_warning, expected_offset_error_px, frames_for_offset
+from rigkit.rig.check import check_rig
+from rigkit.rig.formulas import (
     affine_residual_px,
     anchor_error_fraction,
     back_shift_px,
-    budget_row,
-    burst_warning,
-    check_rig,
     depth_error_from_disparity,
     disparity_px,
-    expected_offset_error_px,
-    frames_for_offset,
-    range_reaching,
     triangulation_angle_deg,
 )
 

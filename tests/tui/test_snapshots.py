@@ -20,6 +20,7 @@ from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
+from tests.conftest import rig_file
 from tests.tui.conftest import text, wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -40,7 +41,8 @@ def drawn_card(shift: int = 0) -> np.ndarray:
 
 
 def session_with_frames(folder: Path, positions: tuple[str, ...]) -> Path:
-    session = create_session(folder, P1000)
+    session = create_session(folder, rig_file(folder.parent, (512, 384), "p1000-tripod.yaml",
+                                              "p1000-512.yaml"))
     for i, position in enumerate(positions):
         path = folder.parent / f"{position}.png"
         cv2.imwrite(str(path), drawn_card(shift=8 * i))

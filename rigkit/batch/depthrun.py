@@ -1,0 +1,125 @@
+"""One depth run: a capture's frames and its rig in; depth, sigma, what to warn about
+and what to record out.
+
+``rigkit depth``, ``rigkit process`` and ``rigkit field`` all compute depth through
+:func:`run_depth`, so a capture gets the same frames, checks, warnings and
+``depth.json`` whichever of them runs it:
+
+1. the frames are decoded, checked and stacked (:func:`rigkit.capture.frames.
+   load_capture`: RAW through LibRaw, a picture in every frame, one file per frame,
+   the rig's image size);
+2. the left, right and back frames' EXIF is checked against each other and the rig
+   (:func:`rigkit.capture.checks.capture_warnings`; a different focal length stops
+   the run unless forced);
+3. the depth method runs (:func:`rigkit.pipeline.estimate_depth`; it refuses views
+   without parallax, with the back view not magnified, or with right and back swapped);
+4. what the result leaves uncertain becomes warnings: the disparity offset's share of
+   depth error, and a burst shorter than the measured heat shimmer calls for.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rigkit.capture.checks import capture_warnings
+from rigkit.capture.frames import FrameFile, load_capture
+from rigkit.capture.session import POSITIONS
+from rigkit.pipeline import DepthResult, estimate_depth
+from rigkit.pipeline.shimmer import Shimmer
+from rigkit.rig.bursts import burst_warning
+from rigkit.rig.profile import RigProfile
+
+Progress = Callable[[str, float], None]
+RigAtSize = Callable[[tuple[int, int]], RigProfile]
+"""A rig whose profile depends on the frames' size (one given by command-line values)."""
+
+
+@dataclass(frozen=True)
+class DepthRun:
+    """What :func:`run_depth` found. ``left``: the left image the depth map lies on,
+    (H, W) float32 grey in [0, 255]; ``burst_length``: frames per position (the
+    shortest burst); ``warnings``: one line each, for the user and depth.json."""
+
+    result: DepthResult
+    left: np.ndarray
+    profile: RigProfile
+    bursts: Mapping[str, tuple[FrameFile, ...]]
+    shimmer: tuple[Shimmer, str] | None
+    burst_length: int
+    warnings: tuple[str, ...]
+
+    def metadata(self) -> dict[str, Any]:
+        """The run as JSON-ready data (the body of ``depth.json``): frames, rig,
+        warnings, shimmer, and the pipeline's diagnostics."""
+        rig = self.profile.geometry()
+        return {
+            "frames": {pos: [_frame_meta(f) for f in self.bursts[pos]] for pos in POSITIONS},
+            "burst_length": self.burst_length,
+            "image_size_px": [self.left.shape[1], self.left.shape[0]],
+            "rig": {"name": self.profile.name, "focal_px": rig.focal_px,
+                    "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
+                    "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},
+            "warnings": list(self.warnings),
+            "shimmer": {"frames": self.shimmer[1], **self.shimmer[0].as_dict()}
+            if self.shimmer else None,
+            **self.result.diagnostics(),
+        }
+
+
+def _frame_meta(frame: FrameFile) -> dict[str, str]:
+    meta = {"file": frame.shown}
+    if frame.sha256:
+        meta["sha256"] = frame.sha256
+    return meta
+
+
+def run_depth(
+    bursts: Mapping[str, Sequence[FrameFile]],
+    rig: RigProfile | RigAtSize,
+    *,
+    cache_dir: Path | None = None,
+    force: bool = False,
+    progress: Progress | None = None,
+) -> DepthRun:
+    """Depth of the left view from a capture (position -> its frames, oldest first) and
+    its rig: a profile, whose image size every frame must have, or a function giving
+    the profile for the frames' size. ``cache_dir`` keeps decoded RAW frames by content
+    hash; ``force`` runs despite a fatal EXIF finding. RigkitError (one line) for a
+    capture that cannot give a trustworthy depth map."""
+    report = progress or (lambda stage, fraction: None)
+    report("reading frames", 0.0)
+    firsts = {pos: bursts[pos][0].path for pos in POSITIONS if bursts.get(pos)}
+    if isinstance(rig, RigProfile):  # EXIF first: a wrong zoom stops before decoding
+        warnings = capture_warnings(rig, firsts, force)
+        loaded = load_capture(bursts, rig.image_size, cache_dir, f"rig profile {rig.name}")
+        profile = rig
+    else:
+        loaded = load_capture(bursts, None, cache_dir)
+        profile = rig(loaded.size)
+        warnings = capture_warnings(profile, firsts, force)
+    report("reading frames", 0.1)
+    geometry = profile.geometry()
+    result = estimate_depth(
+        *loaded.images, geometry, settings=profile.pipeline_settings(),
+        progress=lambda stage, f: report(stage, 0.1 + 0.8 * f),
+    )
+    length = min(len(bursts[pos]) for pos in POSITIONS)
+    found = [result.offset_warning()]
+    if loaded.shimmer is not None:
+        measured, where = loaded.shimmer
+        found.append(burst_warning(measured, where, loaded.size, geometry.focal_px,
+                                   geometry.baseline_lr_m, result.median_depth_m, length))
+    return DepthRun(
+        result=result,
+        left=loaded.images[0],
+        profile=profile,
+        bursts={pos: tuple(bursts[pos]) for pos in POSITIONS},
+        shimmer=loaded.shimmer,
+        burst_length=length,
+        warnings=(*warnings, *filter(None, found)),
+    )

@@ -1,0 +1,217 @@
+"""One camera of a rig profile: its spec, read from and written back to YAML.
+
+The ``camera:`` (or each of ``cameras: left/right/back``) mapping of a profile
+(docs/rig-profiles.md): model, sensor size, resolution, focal length in one of three
+forms, principal point and lens distortion (OpenCV terms or a lensfun profile).
+Errors name the file, the dotted key and the value (:class:`rigkit.core.yamlfile.KeyPath`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from rigkit.core.yamlfile import KeyPath
+from rigkit.errors import InputError
+from rigkit.geometry import NO_DISTORTION, Distortion
+from rigkit.rig.lensfun import LensfunProfile, lensfun_profile
+from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
+
+ASPECT_AGREEMENT = 0.01
+"""``sensor_mm`` and ``resolution`` must have the same aspect ratio within 1 % (square pixels)."""
+FOCAL_FORMS = ("mm", "equivalent_35mm_mm", "px")
+
+_MAX_SENSOR_MM = 100.0
+_MAX_FOCAL_MM = 5000.0
+_MAX_EQUIVALENT_MM = 20000.0
+_MAX_RESOLUTION_PX = 100_000
+
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """One camera (left, right or back).
+
+    ``focal_px`` is the pinhole focal length in pixels (fx = fy);
+    ``focal_tolerance`` its relative uncertainty as a fraction (0.01 = 1 %);
+    ``principal_point_px`` is (cx, cy) in pixels from the top-left pixel's corner,
+    None meaning the image centre. ``focal_given`` keeps the form the profile used,
+    e.g. ``("equivalent_35mm_mm", 400.0)``, so a profile is written back as it was read.
+    """
+
+    model: str
+    sensor_mm: tuple[float, float] | None
+    resolution: tuple[int, int]
+    focal_px: float
+    focal_tolerance: float
+    principal_point_px: tuple[float, float] | None
+    focal_given: tuple[str, float] | None = None
+    distortion: Distortion = NO_DISTORTION
+    lens_profile: LensfunProfile | None = None
+
+
+def read_camera(value: Any, key: KeyPath) -> CameraSpec:
+    keys = key.mapping(
+        value,
+        required=("model", "resolution", "focal_length"),
+        optional=("sensor_mm", "principal_point_px", "distortion"),
+    )
+    resolution = _resolution(keys["resolution"], key.child("resolution"))
+    sensor = key.optional(keys, "sensor_mm", _sensor)
+    if sensor is not None:
+        _check_aspect(sensor, resolution, key)
+    form, given, tolerance = _focal_length(keys["focal_length"], key.child("focal_length"))
+    if form == "px":
+        focal = given
+    elif sensor is None:
+        raise key.child("sensor_mm").error(f"missing: needed to convert focal_length.{form}")
+    elif form == "mm":
+        focal = focal_px_from_mm(given, sensor[0], resolution[0])
+    else:
+        focal = focal_px_from_35mm_equivalent(given, sensor, resolution)
+    principal = key.optional(keys, "principal_point_px", _principal_point)
+    if principal is not None:
+        _check_principal_point(principal, resolution, key.child("principal_point_px"))
+    lens_profile = None
+    if isinstance(keys.get("distortion"), dict) and "lensfun" in keys["distortion"]:
+        lens_profile = _lensfun(
+            keys["distortion"], key.child("distortion"), resolution, focal, sensor
+        )
+    return CameraSpec(
+        model=key.child("model").line(keys["model"]),
+        sensor_mm=sensor,
+        resolution=resolution,
+        focal_px=focal,
+        focal_tolerance=tolerance,
+        principal_point_px=principal,
+        focal_given=(form, given),
+        distortion=lens_profile.distortion
+        if lens_profile
+        else key.optional(keys, "distortion", _distortion) or NO_DISTORTION,
+        lens_profile=lens_profile,
+    )
+
+
+def _resolution(value: Any, key: KeyPath) -> tuple[int, int]:
+    width, height = key.pair(value, "width, height")
+    return (
+        key.integer(width, "pixels", _MAX_RESOLUTION_PX),
+        key.integer(height, "pixels", _MAX_RESOLUTION_PX),
+    )
+
+
+def _sensor(value: Any, key: KeyPath) -> tuple[float, float]:
+    width, height = key.pair(value, "width, height")
+    hint = "sensor_mm is in millimetres; is this in micrometres or pixels?"
+    return (
+        key.bounded(width, "mm", _MAX_SENSOR_MM, hint=hint),
+        key.bounded(height, "mm", _MAX_SENSOR_MM, hint=hint),
+    )
+
+
+def _check_aspect(sensor: tuple[float, float], resolution: tuple[int, int], key: KeyPath) -> None:
+    sensor_aspect = sensor[0] / sensor[1]
+    image_aspect = resolution[0] / resolution[1]
+    if abs(sensor_aspect / image_aspect - 1.0) > ASPECT_AGREEMENT:
+        suggested = sensor[0] * resolution[1] / resolution[0]
+        raise key.child("sensor_mm").error(
+            f"aspect {sensor_aspect:.4f} does not match resolution "
+            f"{resolution[0]}x{resolution[1]} (aspect {image_aspect:.4f}); give the area the "
+            f"image covers, e.g. [{sensor[0]:g}, {suggested:.5g}]",
+            list(sensor),
+        )
+
+
+def _focal_length(value: Any, key: KeyPath) -> tuple[str, float, float]:
+    """(form, value as given, tolerance fraction) read from a ``focal_length`` mapping."""
+    keys = key.mapping(value, required=("tolerance_fraction",), optional=FOCAL_FORMS)
+    forms = [form for form in FOCAL_FORMS if form in keys]
+    if not forms:
+        raise key.error(f"missing: give one of {', '.join(FOCAL_FORMS)}")
+    if len(forms) > 1:
+        raise key.error(
+            f"give only one of {', '.join(FOCAL_FORMS)}", {form: keys[form] for form in forms}
+        )
+    form = forms[0]
+    high = {"mm": _MAX_FOCAL_MM, "equivalent_35mm_mm": _MAX_EQUIVALENT_MM, "px": 1e7}[form]
+    unit = "pixels" if form == "px" else "mm"
+    given = key.child(form).bounded(keys[form], unit, high)
+    return form, given, _tolerance_fraction(keys["tolerance_fraction"], key)
+
+
+def _tolerance_fraction(value: Any, parent: KeyPath) -> float:
+    key = parent.child("tolerance_fraction")
+    number = key.number(value, "fraction")
+    if not 0.0 <= number < 0.5:
+        raise key.error("must be a fraction in [0, 0.5) -- 0.01 means 1 %", value)
+    return number
+
+
+def _principal_point(value: Any, key: KeyPath) -> tuple[float, float]:
+    cx, cy = key.pair(value, "cx, cy")
+    return key.number(cx, "pixels"), key.number(cy, "pixels")
+
+
+def _check_principal_point(
+    point: tuple[float, float], resolution: tuple[int, int], key: KeyPath
+) -> None:
+    if not (0 <= point[0] <= resolution[0] and 0 <= point[1] <= resolution[1]):
+        raise key.error(f"must lie inside the {resolution[0]}x{resolution[1]} image", list(point))
+
+
+DISTORTION_TERMS = ("k1", "k2", "p1", "p2", "k3")
+
+
+def _distortion(value: Any, key: KeyPath) -> Distortion:
+    """``{k1: .., k2: .., p1: .., p2: .., k3: ..}`` (any subset; OpenCV's model on
+    normalised image coordinates about the image centre)."""
+    terms = key.mapping(value, required=(), optional=DISTORTION_TERMS)
+    k1, k2, p1, p2, k3 = (
+        key.child(t).number(terms.get(t, 0.0), "normalised units") for t in DISTORTION_TERMS
+    )
+    return (k1, k2, p1, p2, k3)
+
+
+def _lensfun(
+    value: Any,
+    key: KeyPath,
+    resolution: tuple[int, int],
+    focal_px: float,
+    sensor: tuple[float, float] | None,
+) -> LensfunProfile:
+    """``{lensfun: CAMERA, lens: LENS, focal_mm: F}``: the distortion of lensfun's
+    profile (``lens`` only for interchangeable lenses; ``focal_mm`` the real focal
+    length, by default the profile's focal length over the sensor width)."""
+    keys = key.mapping(value, required=("lensfun",), optional=("lens", "focal_mm"))
+    if "focal_mm" in keys:
+        focal_mm = key.child("focal_mm").bounded(keys["focal_mm"], "mm", _MAX_FOCAL_MM)
+    elif sensor is not None:
+        focal_mm = focal_px * sensor[0] / resolution[0]
+    else:
+        raise key.child("focal_mm").error(
+            "missing: give the real focal length in mm (or camera.sensor_mm) to look the "
+            "lens up"
+        )
+    lens = key.child("lens").line(keys["lens"]) if "lens" in keys else None
+    camera = key.child("lensfun").line(keys["lensfun"])
+    try:
+        return lensfun_profile(camera, focal_mm, resolution, focal_px, lens)
+    except InputError as exc:
+        raise key.child("lensfun").error(str(exc)) from None
+
+
+def camera_to_dict(spec: CameraSpec) -> dict[str, Any]:
+    form, value = spec.focal_given or ("px", spec.focal_px)
+    data: dict[str, Any] = {"model": spec.model}
+    if spec.sensor_mm is not None:
+        data["sensor_mm"] = list(spec.sensor_mm)
+    data["resolution"] = list(spec.resolution)
+    data["focal_length"] = {form: value, "tolerance_fraction": spec.focal_tolerance}
+    if spec.principal_point_px is not None:
+        data["principal_point_px"] = list(spec.principal_point_px)
+    if spec.lens_profile is not None:
+        lf = spec.lens_profile
+        data["distortion"] = {"lensfun": lf.camera, "lens": lf.lens, "focal_mm": lf.focal_mm}
+    elif spec.distortion != NO_DISTORTION:
+        data["distortion"] = dict(zip(DISTORTION_TERMS, spec.distortion, strict=True))
+    return data
