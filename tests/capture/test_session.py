@@ -42,6 +42,11 @@ def small_rig(folder: Path) -> Path:
     return rig_file(folder, (64, 48))
 
 
+def new_session(folder: Path):
+    """A new session ``folder/s`` with the rig of :func:`small_rig`."""
+    return create_session(folder / "s", small_rig(folder))
+
+
 def test_new_session_keeps_a_copy_of_the_rig(tmp_path: Path) -> None:
     session = create_session(tmp_path / "s1", RIG, operator="A. Field", notes="windy")
     again = load_session(tmp_path / "s1")
@@ -65,7 +70,7 @@ def test_bad_rig_writes_nothing(tmp_path: Path) -> None:
 def test_add_frame_copies_byte_for_byte(tmp_path: Path) -> None:
     source = png(tmp_path / "DSC_0001.png")
     before = sha(source)
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", source)
+    session = add_frame(new_session(tmp_path), "left", source)
     frame = session.frames["left"]
     stored = tmp_path / "s" / frame.file
     assert frame.file == "raw/DSC_0001.png"
@@ -75,7 +80,7 @@ def test_add_frame_copies_byte_for_byte(tmp_path: Path) -> None:
 
 
 def test_replacing_a_frame_keeps_the_old_file(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
+    session = add_frame(new_session(tmp_path), "left", png(tmp_path / "a.png"))
     with pytest.raises(InputError, match="already has a left frame"):
         add_frame(session, "left", png(tmp_path / "b.png", seed=1))
     session = add_frame(session, "left", png(tmp_path / "b.png", seed=1), replace_existing=True)
@@ -88,7 +93,7 @@ def test_same_name_different_content_is_not_overwritten(tmp_path: Path) -> None:
     (tmp_path / "day2").mkdir()
     first = png(tmp_path / "day1" / "IMG.png", seed=1)
     second = png(tmp_path / "day2" / "IMG.png", seed=2)
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", first)
+    session = add_frame(new_session(tmp_path), "left", first)
     session = add_frame(session, "right", second)
     assert session.frames["right"].file == "raw/right-IMG.png"
     assert sha(tmp_path / "s" / "raw" / "IMG.png") == sha(first)
@@ -97,7 +102,7 @@ def test_same_name_different_content_is_not_overwritten(tmp_path: Path) -> None:
 def test_unreadable_frame_never_enters_raw(tmp_path: Path) -> None:
     garbage = tmp_path / "DSC_0002.NEF"
     garbage.write_bytes(b"not a raw file" * 100)
-    session = create_session(tmp_path / "s", small_rig(tmp_path))
+    session = new_session(tmp_path)
     with pytest.raises(InputError, match="DSC_0002.NEF"):
         add_frame(session, "left", garbage)
     assert list((tmp_path / "s" / "raw").iterdir()) == []
@@ -105,13 +110,13 @@ def test_unreadable_frame_never_enters_raw(tmp_path: Path) -> None:
 
 
 def test_frames_must_share_a_size(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
+    session = add_frame(new_session(tmp_path), "left", png(tmp_path / "a.png"))
     with pytest.raises(InputError, match="64x48"):
         add_frame(session, "right", png(tmp_path / "b.png", size=(80, 48)))
 
 
 def test_targets_outside_the_image_and_even_windows_are_refused(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
+    session = add_frame(new_session(tmp_path), "left", png(tmp_path / "a.png"))
     reading = [LaserReading(300.0, "2026-11-22T10:00:00Z", "manual")]
     with pytest.raises(InputError, match=r"outside the 64x48 left image"):
         add_target(session, "T1", (64.0, 10.0), readings=reading)
@@ -122,7 +127,7 @@ def test_targets_outside_the_image_and_even_windows_are_refused(tmp_path: Path) 
 
 
 def test_more_readings_for_a_target(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
+    session = add_frame(new_session(tmp_path), "left", png(tmp_path / "a.png"))
     session = add_target(session, "mast", (10, 20), readings=[LaserReading(301.0, "t", "manual")])
     session = add_target(session, "mast", (10, 20), readings=[LaserReading(301.4, "t", "manual")])
     assert [r.slope_distance_m for r in load_session(session.path).target("mast").readings] == [
@@ -228,7 +233,7 @@ def test_bundled_example_records_no_machine_path() -> None:
 
 
 def test_a_burst_is_listed_in_order_and_read_back(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
+    session = add_frame(new_session(tmp_path), "left", png(tmp_path / "a.png"))
     session = add_frame(session, "left", png(tmp_path / "b.png", seed=1), burst=True)
     session = add_frame(session, "left", png(tmp_path / "c.png", seed=2), burst=True)
     files = [f.file for f in session.bursts["left"]]
@@ -246,7 +251,7 @@ def test_a_burst_is_listed_in_order_and_read_back(tmp_path: Path) -> None:
 
 
 def test_a_burst_refuses_the_same_exposure_twice_and_another_size(tmp_path: Path) -> None:
-    session = add_frame(create_session(tmp_path / "s", small_rig(tmp_path)), "left", png(tmp_path / "a.png"))
+    session = add_frame(new_session(tmp_path), "left", png(tmp_path / "a.png"))
     with pytest.raises(InputError, match="a.png is the same file as raw/a.png, given twice in "
                        "the burst"):
         add_frame(session, "left", tmp_path / "a.png", burst=True)
