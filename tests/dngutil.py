@@ -100,6 +100,59 @@ def write_dng(
     return path
 
 
+_IFD0_DNG_TAGS = frozenset({50706, 50707, 50708, 50721, 50728, 50778})
+"""DNG tags that describe the whole file and live in IFD 0 whatever holds the raw data."""
+
+
+def write_camera_dng(
+    path: str | Path,
+    bayer: np.ndarray,
+    *,
+    thumbnail_size: tuple[int, int] = (160, 120),
+    white_level: int = 4095,
+    exif: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write ``bayer`` ((H, W) uint16, RGGB) the way cameras and converters write a DNG
+    (and Nikon a NEF): IFD 0 is a small RGB preview (NewSubfileType 1,
+    ``thumbnail_size`` (width, height) px, the mosaic shrunk) carrying the file-wide DNG
+    tags and EXIF; the raw mosaic is in a SubIFD (NewSubfileType 0). A reader that takes
+    IFD 0 for the image gets the preview. Returns ``path``."""
+    path = Path(path)
+    bayer = _checked_mosaic(bayer, white_level)
+    exif = dict(exif or {})
+    tags = _dng_tags("RGGB", white_level, 0, (1.0, 1.0, 1.0), IDENTITY_MATRIX)
+    file_tags = [t for t in tags if t[0] in _IFD0_DNG_TAGS]
+    raw_tags = [t for t in tags if t[0] not in _IFD0_DNG_TAGS]
+    for code, key in ((271, "make"), (272, "model")):
+        if exif.get(key):
+            file_tags.append((code, "s", 0, str(exif[key]), True))
+    exif_entries = _exif_entries(exif)
+    if exif_entries:
+        file_tags.append((_PLACEHOLDER, "I", 1, (0,), True))
+    width, height = thumbnail_size
+    step_y, step_x = max(1, bayer.shape[0] // height), max(1, bayer.shape[1] // width)
+    sampled = bayer[::step_y, ::step_x][:height, :width] * (255.0 / white_level)
+    preview = np.repeat(sampled.astype(np.uint8)[..., None], 3, axis=2)
+    with tifffile.TiffWriter(path, byteorder="<") as tif:
+        tif.write(preview, photometric="rgb", subfiletype=1, subifds=1, extratags=file_tags,
+                  metadata=None)
+        tif.write(bayer, photometric=32803, subfiletype=0, extratags=raw_tags, metadata=None)
+    if exif_entries:
+        _append_exif_ifd(path, exif_entries)
+    return path
+
+
+def bayer_from_grey(grey: np.ndarray, white_level: int = 4095, peak: float = 0.8
+                    ) -> np.ndarray:
+    """A neutral scene's raw mosaic from a gamma-encoded grey image ((H, W) in [0, 255],
+    as rendered PNGs hold): the sRGB curve undone, the brightest value at ``peak`` of
+    the white level, every photosite the scene's linear value (R = G = B). (H, W) uint16
+    with even sides (a last odd row or column is dropped)."""
+    g = np.asarray(grey, np.float64)[: grey.shape[0] // 2 * 2, : grey.shape[1] // 2 * 2] / 255
+    linear = np.where(g <= 0.04045, g / 12.92, ((g + 0.055) / 1.055) ** 2.4)
+    return np.rint(linear / max(linear.max(), 1e-9) * peak * white_level).astype(np.uint16)
+
+
 def _checked_mosaic(bayer: np.ndarray, white_level: int) -> np.ndarray:
     bayer = np.asarray(bayer)
     if bayer.ndim != 2 or bayer.shape[0] % 2 or bayer.shape[1] % 2:

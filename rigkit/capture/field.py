@@ -46,7 +46,7 @@ from rigkit.capture.picture import CLIP_LEVEL
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
 from rigkit.errors import RigkitError
-from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, roles_problem
+from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, implied_range_m, roles_problem
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.rangefinder.framing import Reading, escape_bytes
@@ -191,14 +191,6 @@ def _local_linear(a: np.ndarray, b: np.ndarray, point: tuple[float, float],
     return np.asarray(top / w, dtype=np.float64)
 
 
-def range_from_magnification(magnification: float, baseline_lb_m: float) -> float:
-    """Depth z (m) at which the back view, ``baseline_lb_m`` behind, is ``magnification``
-    times the left view's size: z = m C_lb / (1 - m); inf when m >= 1."""
-    if magnification >= 1.0:
-        return math.inf
-    return magnification * baseline_lb_m / (1.0 - magnification)
-
-
 def exif_check(session: Session, position: str) -> Finding:
     """The position's frame's EXIF against the other frames taken and the profile.
 
@@ -269,7 +261,7 @@ def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
             redo=f"take the back frame {c_lb:g} m behind the left position, same zoom",
         ))
         return checks
-    z = range_from_magnification(view.scale, c_lb)
+    z = implied_range_m(view.scale, c_lb)
     text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {c_lb:.1f} m"
     nominal = profile.nominal_range_m
     if nominal is not None and not nominal / RANGE_FACTOR <= z <= nominal * RANGE_FACTOR:
@@ -342,7 +334,8 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
         return [*checks, *right_checks(view)]
     back = back_checks(view, session.rig())
     if all_ok(back) and frames_at(session, "right"):  # magnified: is the right one less so?
-        back += _roles_check(_view_of(session, "right", left, reduction), view)
+        right = _view_of(session, "right", left, reduction)
+        back += _roles_check(right, view, session.rig().baseline_lb.value_m)
     return [*checks, *back]
 
 
@@ -352,10 +345,10 @@ def _view_of(session: Session, position: str, left: np.ndarray, reduction: float
     return map_views(left, other, reduction)
 
 
-def _roles_check(right: ViewMap, back: ViewMap) -> list[Finding]:
+def _roles_check(right: ViewMap, back: ViewMap, baseline_lb_m: float) -> list[Finding]:
     """A failed check where the right and back frames look swapped (one rule with the
     pipeline's, :func:`rigkit.pipeline.checks.roles_problem`)."""
-    problem = roles_problem(right.scale, back.scale)
+    problem = roles_problem(right.scale, back.scale, baseline_lb_m)
     if problem is None:
         return []
     return [Finding("roles", problem, redo="take the right frame beside the left position "

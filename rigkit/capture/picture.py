@@ -10,12 +10,12 @@ again before depth is computed, and refused with what is wrong and what to do.
 The checks and their thresholds (measured on the real files in ../shared/data/real-raw
 and on rendered frames; docs/sessions.md, "Frames with no picture"):
 
-* **blank**: all pixels one value (stripped DNGs decode to exact zeros). A real frame,
-  however dark, carries sensor noise of several levels; the threshold is a few 16-bit
-  levels of spread between the 0.1st and 99.9th percentile.
 * **white**: more than half of the frame clipped white (the film scanner's NEF: 87 %).
   A bright sky clips a part of a frame, not most of it; the on-site exposure check
   already asks for a retake above 1 %.
+* **blank**: all pixels one value (stripped DNGs decode to exact zeros). A real frame,
+  however dark, carries sensor noise of several levels; the threshold is a few 16-bit
+  levels of spread between the 0.1st and 99.9th percentile.
 * **noise**: no structure beyond the pixel scale. Averaging 8x8 blocks keeps nearly all
   of a photograph's variance (0.79-0.99 of it on real and rendered frames; still 0.18
   when noise per pixel is twice the scene's contrast) but 1/64 of white noise's.
@@ -40,7 +40,8 @@ STRUCTURE_BLOCK = 8
 MIN_CUT_ROWS = 0.01
 """A flat band at the bottom this tall (fraction of the height) or taller is a cut."""
 _SAMPLE_PX = 1024
-"""The statistics are taken on at most this many rows and columns (a regular subset)."""
+"""The statistics are taken on at most this many rows and columns (a regular subset,
+or for the structure a central crop): about 10 ms for a 16 MP frame."""
 
 
 def picture_problem(grey: np.ndarray) -> str | None:
@@ -49,14 +50,14 @@ def picture_problem(grey: np.ndarray) -> str | None:
     grey = np.asarray(grey, dtype=np.float32)
     step = max(1, -(-max(grey.shape) // _SAMPLE_PX))
     sample = grey[::step, ::step]
-    low, high = np.percentile(sample, [0.1, 99.9])
-    if high - low <= BLANK_SPREAD:
-        return (f"it is blank (every pixel {float(np.median(sample)):.3g} of full scale): the "
-                "image data is missing or the lens was capped")
     clipped = float(np.mean(sample >= CLIP_LEVEL))
     if clipped > MAX_CLIPPED:
         return (f"{100 * clipped:.0f} % of it is clipped white: it was grossly overexposed, or "
                 "is not a photograph")
+    low, high = np.percentile(sample, [0.1, 99.9])
+    if high - low <= BLANK_SPREAD:
+        return (f"it is blank (every pixel {float(np.median(sample)):.3g} of full scale): the "
+                "image data is missing or the lens was capped")
     cut = _flat_bottom_rows(grey)
     if cut >= MIN_CUT_ROWS * grey.shape[0]:
         return (f"its last {cut} rows are one flat grey: the file was cut short (copy it "

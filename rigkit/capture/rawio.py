@@ -313,9 +313,10 @@ def _libraw_reason(exc: Exception) -> str:
         return ("not a RAW file LibRaw can decode (an unsupported format or camera, or a "
                 "file cut short)")
     if isinstance(exc, rawpy.LibRawIOError):
-        return "cannot read the RAW data (file truncated or unreadable)"
+        return ("LibRaw cannot read its data: the file is cut short or unreadable (copy it "
+                "from the card again)")
     if isinstance(exc, rawpy.LibRawDataError):
-        return "corrupt RAW data"
+        return "its RAW data is damaged (LibRaw: data error)"
     if isinstance(exc, rawpy.LibRawTooBigError):
         return "RAW image too large for LibRaw"
     if isinstance(exc, rawpy.LibRawUnsufficientMemoryError):

@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     try:
-        from rigkit.tui.app import FieldApp
+        from rigkit.tui.app import run_field
         from rigkit.tui.config import FieldConfig
         from rigkit.tui.demo import prepare_demo
     except ImportError as exc:
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         capture = args.session.parent if args.session is not None else args.capture
         config = FieldConfig(capture=capture, session=args.session, rig=args.rig,
                              watch=args.watch, port=args.port, protocol=args.protocol)
-    FieldApp(config).run()
+    run_field(config)
     if args.demo:
         print(f"the demo session is kept in {config.session}")
     return 0

@@ -10,6 +10,8 @@ to redo.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rigkit.errors import PipelineError
@@ -27,33 +29,41 @@ def affine_scale(affine: np.ndarray) -> float:
     return float(np.sqrt(abs(np.linalg.det(affine[:, :2]))))
 
 
-def roles_problem(right: float, back: float) -> str | None:
-    """Why views of scale ``right`` and ``back`` (each against the left view) cannot be
-    the right and the back view, or None. The back camera, C_lb behind, sees the scene
-    smaller by C_lb / (z + C_lb); the right one, beside the left, at the same size. A
-    right view smaller than the back one is the back frame: the two were given the
-    wrong way round. (Ask only once the back view shows a magnification at all,
-    :func:`check_magnification`: with neither moved, the smaller is a matter of noise.)"""
-    if right >= back:
+def roles_problem(right: float, back: float, baseline_lb_m: float) -> str | None:
+    """Why views of scale ``right`` and ``back`` (each against the left view) look like
+    the back and the right view given the wrong way round, or None. The back camera,
+    C_lb behind, sees the scene smaller by C_lb / (z + C_lb); the right one, beside the
+    left, at the same size. A right view smaller than the back one, by a magnification
+    that puts the scene at a plausible range (:func:`implied_range_m`), was taken
+    behind."""
+    if right >= back or implied_range_m(right, baseline_lb_m) > MAX_IMPLIED_RANGE_M:
         return None
     return (f"the right view is {right:.5f}x the left one and the back view {back:.5f}x: "
             "the right frame looks like the one taken behind; were right and back swapped?")
 
 
 def check_roles(lr: Matches, lb: Matches, baseline_lb_m: float) -> None:
-    """PipelineError when the back view (matches ``lb``) shows no magnification
-    (:func:`check_magnification`), or the right view (``lr``) is not at the left one's
-    distance: smaller than the back view (:func:`roles_problem`), or zoomed."""
+    """PipelineError when the right (matches ``lr``) and back (``lb``) views look
+    swapped (:func:`roles_problem`), the back view shows no magnification
+    (:func:`check_magnification`), or the right one is zoomed."""
     right, back = affine_scale(lr.affine), affine_scale(lb.affine)
-    check_magnification(back, baseline_lb_m)
-    problem = roles_problem(right, back)
+    problem = roles_problem(right, back, baseline_lb_m)
     if problem is not None:
         raise PipelineError(problem)
+    check_magnification(back, baseline_lb_m)
     if abs(right - 1.0) > MAX_RIGHT_SCALE_CHANGE:
         raise PipelineError(
             f"the right view is {right:.4f}x the left one: the zoom changed between them "
             "(set it back to the left frame's and take the right frame again)"
         )
+
+
+def implied_range_m(scale: float, baseline_lb_m: float) -> float:
+    """The range (m) at which a view ``baseline_lb_m`` behind is ``scale`` times the left
+    view's size: z = m C_lb / (1 - m); inf when m >= 1."""
+    if scale >= 1.0:
+        return math.inf
+    return baseline_lb_m * scale / (1.0 - scale)
 
 
 def check_distinct(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:
@@ -94,7 +104,7 @@ def check_magnification(scale: float, baseline_lb_m: float) -> float:
             f"left/back: the back view shows the scene {scale:.5f}x as large as the left "
             "view (expected < 1: was the back frame taken behind the left camera?)"
         )
-    z = baseline_lb_m * scale / (1.0 - scale)
+    z = implied_range_m(scale, baseline_lb_m)
     if z > MAX_IMPLIED_RANGE_M:
         raise PipelineError(
             f"no magnification between left and back: the back view is {scale:.6f}x the "

@@ -9,6 +9,7 @@ session folder is always up to date: quitting or a crash loses nothing, and star
 
 from __future__ import annotations
 
+import sys
 import threading
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from rigkit.capture.field import (
     next_step,
     onsite_checks,
 )
+from rigkit.core.chatter import private_terminal
 from rigkit.errors import RigkitError
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import (
@@ -53,6 +55,19 @@ FIELD_THEME = Theme(
 )
 
 STEPS = ("rig", "left", "right", "back", "targets", "process")
+
+
+def run_field(config: FieldConfig) -> None:
+    """Run ``rigkit field`` in this terminal. Textual draws on ``sys.__stderr__``;
+    it gets a duplicate of the terminal of its own, so that while a decoder's messages
+    are captured from descriptor 2 (:mod:`rigkit.core.chatter`) the screen stays."""
+    terminal, saved = private_terminal(), sys.__stderr__
+    setattr(sys, "__stderr__", terminal)  # noqa: B010 (the name is read-only to mypy only)
+    try:
+        FieldApp(config).run()
+    finally:
+        setattr(sys, "__stderr__", saved)  # noqa: B010
+        terminal.close()
 
 
 class FieldApp(App[None]):

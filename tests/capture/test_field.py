@@ -23,10 +23,10 @@ from rigkit.capture.field import (
     map_views,
     next_step,
     onsite_checks,
-    range_from_magnification,
     right_checks,
 )
 from rigkit.errors import InputError
+from rigkit.pipeline.checks import implied_range_m
 from rigkit.rig import load_rig
 from tests.conftest import rig_file
 
@@ -54,11 +54,11 @@ def similarity(image: np.ndarray, scale: float, roll_deg: float, shift: tuple[fl
     return cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
 
 
-def test_range_from_magnification_inverts_the_back_geometry() -> None:
+def test_implied_range_m_inverts_the_back_geometry() -> None:
     for z in (150.0, 290.0, 500.0):
         m = z / (z + 2.0)  # the back camera is 2 m further away
-        assert range_from_magnification(m, 2.0) == pytest.approx(z)
-    assert range_from_magnification(1.0, 2.0) == math.inf
+        assert implied_range_m(m, 2.0) == pytest.approx(z)
+    assert implied_range_m(1.0, 2.0) == math.inf
 
 
 def test_map_views_recovers_a_known_similarity_with_no_parallax() -> None:
@@ -253,5 +253,5 @@ def test_back_magnification_gives_the_range_of_a_rendered_scene() -> None:
     view = map_views(expose(scene, "left", left).astype(np.float32),
                      expose(scene, "back", back).astype(np.float32))
     true_z = float(np.nanmedian(depth))
-    assert range_from_magnification(view.scale, 2.0) == pytest.approx(true_z, rel=0.1)
+    assert implied_range_m(view.scale, 2.0) == pytest.approx(true_z, rel=0.1)
     assert not _failed(back_checks(view, load_rig(SYNTHETIC)))
