@@ -4,6 +4,7 @@ SubIFD). Each test is a row of issue 21's table: what a user does with a real fi
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -20,7 +21,9 @@ from rigkit.errors import InputError
 from tests.conftest import rig_file
 from tests.dngutil import bayer_from_grey, write_camera_dng
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real-raw"
+REAL = Path(os.environ.get(
+    "RIGKIT_REAL_RAW", Path(__file__).resolve().parents[3] / "shared" / "data" / "real-raw"))
+"""The genuine camera files: ../shared/data/real-raw beside the checkout, or $RIGKIT_REAL_RAW."""
 
 
 def real(name: str) -> Path:
@@ -269,3 +272,14 @@ def test_a_gopro_gpr_says_it_is_unsupported(tmp_path: Path) -> None:
     path.write_bytes(camera_dng(tmp_path / "a.dng").read_bytes())
     with pytest.raises(InputError, match="GoPro GPR .* is not a RAW format LibRaw decodes"):
         load_linear_grey(path)
+
+
+def test_a_frame_refused_for_its_size_never_enters_raw(tmp_path: Path) -> None:
+    # Before: three refused frames left 5.9 MB of unrecorded files in raw/.
+    session = create_session(tmp_path / "s", rig_file(tmp_path, (320, 240)))
+    session = add_frame(session, "left", camera_dng(tmp_path / "a.dng"))
+    for k, size in enumerate(((640, 480), (240, 320), (322, 240))):
+        with pytest.raises(InputError, match=rf"{size[0]}x{size[1]} px, but the rig profile"):
+            add_frame(session, "right", camera_dng(tmp_path / f"b{k}.dng", size, seed=k))
+    assert raw_files(session.path) == ["a.dng"]
+    assert not list((session.path / ".staging").iterdir())
