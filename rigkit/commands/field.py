@@ -51,9 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     try:
+        from rigkit.synth.demo import prepare_demo
         from rigkit.tui.app import run_field
         from rigkit.tui.config import FieldConfig
-        from rigkit.tui.demo import prepare_demo
     except ImportError as exc:
         raise InputError(f"rigkit field needs the TUI packages ({exc.name} is missing): "
                          "pip install rigkit") from None

@@ -16,6 +16,7 @@ from pathlib import Path
 from textual import work
 from textual.app import App
 from textual.binding import Binding
+from textual.message import Message
 from textual.theme import Theme
 
 from rigkit.capture import Session, load_session
@@ -29,6 +30,16 @@ from rigkit.capture.field import (
 from rigkit.core.chatter import private_terminal
 from rigkit.errors import RigkitError
 from rigkit.tui.config import FieldConfig
+from rigkit.tui.messages import (
+    CheckPosition,
+    FrameAdded,
+    FrameChecked,
+    FrameRefused,
+    Goto,
+    IngestFile,
+    OpenSession,
+    SessionChanged,
+)
 from rigkit.tui.screens import (
     PositionScreen,
     ProcessScreen,
@@ -54,9 +65,6 @@ FIELD_THEME = Theme(
     dark=True,
 )
 
-STEPS = ("rig", "left", "right", "back", "targets", "process")
-
-
 def run_field(config: FieldConfig) -> None:
     """Run ``rigkit field`` in this terminal. Textual draws on ``sys.__stderr__``;
     it gets a duplicate of the terminal of its own, so that while a decoder's messages
@@ -71,7 +79,9 @@ def run_field(config: FieldConfig) -> None:
 
 
 class FieldApp(App[None]):
-    """``rigkit field``: the guided three-position capture."""
+    """``rigkit field``: the guided three-position capture. Owns the session and the
+    background workers; the screens (:mod:`rigkit.tui.screens`) show steps and post
+    what the user asks for (:mod:`rigkit.tui.messages`)."""
 
     TITLE = "rigkit field"
     CSS_PATH = "field.tcss"
@@ -108,9 +118,10 @@ class FieldApp(App[None]):
     def goto(self, step: str, resume: bool = False) -> None:
         """Replace the current step's screen with ``step``'s (``resume``: opening a
         session, so the process step shows its latest run rather than running again)."""
+        assert self.session is not None
         screen = (
             RigScreen() if step == "rig"
-            else TargetsScreen() if step == "targets"
+            else TargetsScreen(self.session) if step == "targets"
             else ProcessScreen(resume) if step == "process"
             else PositionScreen(step)
         )
@@ -119,12 +130,14 @@ class FieldApp(App[None]):
         else:
             self.push_screen(screen)
 
-    def step_after(self, step: str, offset: int) -> str | None:
-        index = STEPS.index(step) + offset
-        return STEPS[index] if 0 <= index < len(STEPS) else None
+    def on_goto(self, message: Goto) -> None:
+        self.goto(message.step, message.resume)
 
-    def set_session(self, session: Session) -> None:
-        self.session = session
+    def on_open_session(self, message: OpenSession) -> None:
+        self.open_session(message.session)
+
+    def on_session_changed(self, message: SessionChanged) -> None:
+        self.session = message.session
 
     def action_quit_field(self) -> None:
         """Quit: everything is already saved; stop the watcher and the workers."""
@@ -163,6 +176,9 @@ class FieldApp(App[None]):
         screen = self.screen
         return screen.position if isinstance(screen, PositionScreen) else None
 
+    def on_ingest_file(self, message: IngestFile) -> None:
+        self.ingest_file(message.path, message.position)
+
     @work(thread=True, group="ingest")
     def ingest_file(self, path: Path, position: str) -> None:
         """A file named by hand (the path entry), ingested like an arrival."""
@@ -175,10 +191,18 @@ class FieldApp(App[None]):
         try:
             session = add_position_frame(self.session, position, path)
         except RigkitError as exc:
-            self.call_from_thread(self.on_position, position, "show_error", str(exc))
+            self.tell(FrameRefused(position, str(exc)))
             return
-        self.call_from_thread(self.set_session, session)
-        self.call_from_thread(self.on_position, position, "show_added", path.name)
+        self.call_from_thread(setattr, self, "session", session)
+        self.tell(FrameAdded(position, path.name))
+        self.check_position(session, position)
+
+    def on_check_position(self, message: CheckPosition) -> None:
+        assert self.session is not None
+        self.check_worker(self.session, message.position)
+
+    @work(thread=True, group="check")
+    def check_worker(self, session: Session, position: str) -> None:
         self.check_position(session, position)
 
     def check_position(self, session: Session, position: str) -> None:
@@ -187,12 +211,10 @@ class FieldApp(App[None]):
             checks = onsite_checks(session, position)
             image, _ = check_image(session, frames_at(session, position)[-1])
         except RigkitError as exc:
-            self.call_from_thread(self.on_position, position, "show_error", str(exc))
+            self.tell(FrameRefused(position, str(exc)))
             return
-        self.call_from_thread(self.on_position, position, "show_checks", checks, image)
+        self.tell(FrameChecked(position, checks, image))
 
-    def on_position(self, position: str, method: str, *args: object) -> None:
-        """Call ``method`` of ``position``'s screen with ``args``, if it is on screen."""
-        screen = self.screen
-        if isinstance(screen, PositionScreen) and screen.position == position:
-            getattr(screen, method)(*args)
+    def tell(self, message: Message) -> None:
+        """Post ``message`` to the screen on show (from a worker thread)."""
+        self.call_from_thread(lambda: self.screen.post_message(message))

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from rigkit.tui.demo import Demo
+from rigkit.synth.demo import Demo
 from rigkit.tui.watch import SETTLE_S
 
 

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from rigkit.capture import create_session
-from rigkit.tui.demo import Demo, prepare_demo
+from rigkit.synth.demo import Demo, prepare_demo
 
 SHOT_S = 0.1  # the simulated camera and laser, fast
 SETTLE_S = 0.2  # a new file counts after this long unchanged

@@ -9,9 +9,9 @@ from pathlib import Path
 
 from rigkit.capture import POSITIONS, Session, create_session, load_session, read_rows
 from rigkit.capture.field import add_position_frame, frames_at
+from rigkit.synth.demo import Demo
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
-from rigkit.tui.demo import Demo
 from rigkit.tui.screens import PositionScreen, ProcessScreen, RigScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
 from tests.tui.conftest import SETTLE_S, synchronous, text, wait_for, write_frame

@@ -1,0 +1,121 @@
+"""The process step: run the depth, show it with the laser comparisons and the verdict."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
+from textual.worker import get_current_worker
+
+from rigkit.batch import new_run_id, process_session
+from rigkit.capture import RESULTS_DIR, read_rows
+from rigkit.capture.comparisons import Comparison, latest_run
+from rigkit.errors import RigkitError
+from rigkit.reporting.verdict import judge, offset_note
+from rigkit.tui.screens.common import StepScreen, escape, session_of
+from rigkit.tui.widgets import PixelView
+
+
+class Stopped(Exception):
+    """Processing given up because its screen closed (raised from the progress report)."""
+
+
+class ProcessScreen(StepScreen):
+    """Run the depth pipeline; show the depth, the laser comparisons and the verdict."""
+
+    step = "process"
+    BINDINGS = [Binding("r", "run", "process")]
+
+    def __init__(self, resume: bool = False) -> None:
+        """``resume``: show the latest run if there is one, instead of processing."""
+        super().__init__()
+        self.resume = resume
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        yield Static("", id="stage")
+        yield ProgressBar(total=1.0, show_eta=False, id="progress")
+        with Horizontal():
+            yield Vertical(id="depth")
+            yield DataTable(id="rows", cursor_type="none")
+        yield Static("", id="verdict")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        table = self.query_one(DataTable)
+        table.add_columns("target", "laser m", "depth m", "error", "ok")
+        session = session_of(self)
+        rows = latest_run(read_rows(session.path / "comparisons.csv")) \
+            if (session.path / "comparisons.csv").is_file() else []
+        if self.resume and rows and (session.path / RESULTS_DIR / "depth.png").is_file():
+            self._show_results(rows)
+            self.query_one("#stage", Static).update("latest run shown; r: process again")
+        else:
+            self.action_run()
+
+    def action_run(self) -> None:
+        self.query_one("#stage", Static).update("processing ...")
+        self._process()
+
+    @work(thread=True, exclusive=True, group="process")
+    def _process(self) -> None:
+        """Process the session; leaving the screen or quitting stops it at the next stage
+        (nothing is written until a run is complete)."""
+        path = session_of(self).path
+        worker = get_current_worker()
+
+        def progress(stage: str, fraction: float) -> None:
+            if worker.is_cancelled:
+                raise Stopped(stage)
+            self.app.call_from_thread(self._progress, stage, fraction)
+
+        try:
+            outcome = process_session(path, new_run_id(), progress=progress)
+        except Stopped:
+            return
+        except RigkitError as exc:
+            self.app.call_from_thread(self._failed, str(exc))
+            return
+        self.app.call_from_thread(self._show_results, list(outcome.rows))
+
+    def on_unmount(self) -> None:
+        self.workers.cancel_group(self, "process")
+
+    def _progress(self, stage: str, fraction: float) -> None:
+        self.query_one("#stage", Static).update(f"{stage} {100 * fraction:.0f} %")
+        self.query_one(ProgressBar).update(progress=fraction)
+
+    def _failed(self, message: str) -> None:
+        self.query_one("#stage", Static).update(f"[b $error]✘ {escape(message)}[/]")
+
+    def _show_results(self, rows: list[Comparison]) -> None:
+        session = session_of(self)
+        self.query_one(ProgressBar).update(progress=1.0)
+        verdict = judge(rows, session.rig(), frames=session.burst_length)
+        table = self.query_one(DataTable)
+        table.clear()
+        for row, target in zip(rows, verdict.targets, strict=True):
+            error = "" if math.isnan(row.error_pct) else f"{row.error_pct:+.2f} %"
+            table.add_row(row.target, _num(row.laser_range_m), _num(row.estimate_range_m),
+                          error, "✔" if target.ok else "✘")
+        colour = "$success" if verdict.ok else "$error"
+        advice = "".join(f"\n- {escape(a)}" for a in verdict.advice)
+        note = offset_note(session.path)
+        if note:
+            advice += f"\n[$warning]{escape(note)}[/]"
+        self.query_one("#verdict", Static).update(
+            f"[b {colour}]{escape(verdict.headline)}[/]{advice}")
+        depth = cv2.imread(str(session.path / RESULTS_DIR / "depth.png"), cv2.IMREAD_COLOR)
+        box = self.query_one("#depth", Vertical)
+        box.remove_children()
+        if depth is not None:
+            box.mount(PixelView(cv2.cvtColor(depth, cv2.COLOR_BGR2RGB)))
+
+
+def _num(value: float) -> str:
+    return "-" if math.isnan(value) else f"{value:.1f}"

@@ -1,0 +1,84 @@
+"""The start screen: the sessions of the capture folder to resume, or a new one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, Input, Static
+
+from rigkit.capture import create_session, is_session, load_session
+from rigkit.capture.field import frames_at, next_step
+from rigkit.errors import RigkitError
+from rigkit.tui.messages import OpenSession
+from rigkit.tui.screens.common import escape, host
+
+
+class StartScreen(Screen[None]):
+    """Resume a session of the capture folder, or start a new one with a rig profile."""
+
+    AUTO_FOCUS = "#sessions"
+    BINDINGS = [Binding("enter", "open", "open session", show=True)]
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        yield Static("Sessions in " + str(host(self).config.capture), classes="title")
+        yield DataTable(id="sessions", cursor_type="row")
+        yield Static("Enter: open the selected session   Tab: start a new one below",
+                     id="hint")
+        yield Static("New session: NAME RIG.yaml, then Enter", classes="title")
+        yield Input(placeholder="ridge-0412 rigs/p1000-tripod.yaml", id="new")
+        yield Static("", id="message")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        table = self.query_one(DataTable)
+        table.add_columns("session", "next step", "frames", "targets")
+        capture = host(self).config.capture
+        folders = sorted(p for p in capture.iterdir() if is_session(p)) if capture.is_dir() else []
+        for folder in folders:
+            try:
+                session = load_session(folder)
+            except RigkitError:  # opening it shows why
+                table.add_row(folder.name, "unreadable", "", "", key=str(folder))
+                continue
+            frames = sum(len(frames_at(session, p)) for p in ("left", "right", "back"))
+            table.add_row(session.name, next_step(session), str(frames),
+                          str(len(session.targets)), key=str(folder))
+
+    def keyescape(self) -> None:
+        """Leave the new-session box: keys (q included) go to the list again."""
+        self.query_one(DataTable).focus()
+
+    def action_open(self) -> None:
+        table = self.query_one(DataTable)
+        if table.row_count == 0:
+            return
+        key = table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value
+        self._open(Path(str(key)))
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        self._open(Path(str(event.row_key.value)))
+
+    def _open(self, folder: Path) -> None:
+        try:
+            self.post_message(OpenSession(load_session(folder)))
+        except RigkitError as exc:
+            self.query_one("#message", Static).update(f"[b $error]{escape(str(exc))}[/]")
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        parts = event.value.split()
+        app = host(self)
+        rig = Path(parts[1]) if len(parts) > 1 else app.config.rig
+        if not parts or rig is None:
+            self.query_one("#message", Static).update(
+                "[b $error]give a session name and a rig profile (NAME RIG.yaml)[/]")
+            return
+        try:
+            session = create_session(app.config.capture / parts[0], rig)
+        except RigkitError as exc:
+            self.query_one("#message", Static).update(f"[b $error]{escape(str(exc))}[/]")
+            return
+        self.post_message(OpenSession(session))

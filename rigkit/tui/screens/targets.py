@@ -1,0 +1,209 @@
+"""The targets step: mark where the laser hit on the left frame; readings arrive from
+the rangefinder (or are typed in) and are saved to the session as they come."""
+
+from __future__ import annotations
+
+import numpy as np
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.widgets import Footer, Header, Input, Static
+from textual.worker import get_current_worker
+
+from rigkit.capture import LaserReading, Session, Target, add_target, utc_now
+from rigkit.capture.field import check_image, frames_at, reading_from_device
+from rigkit.errors import RigkitError
+from rigkit.rangefinder.follow import LinkStatus, follow
+from rigkit.tui.messages import SessionChanged
+from rigkit.tui.screens.common import StepScreen, escape, host
+from rigkit.tui.widgets import Mark, PixelView
+
+
+class TargetsScreen(StepScreen):
+    """Mark where the laser hit on the left frame; readings arrive and are saved."""
+
+    step = "targets"
+    BINDINGS = [
+        Binding("enter", "mark", "mark target"),
+        Binding("plus,equals_sign", "zoom(1)", "zoom in", key_display="+"),
+        Binding("minus", "zoom(-1)", "zoom out", key_display="-"),
+        Binding("m", "manual", "type range"),
+        Binding("up", "move(0, -1)", show=False),
+        Binding("down", "move(0, 1)", show=False),
+        Binding("left", "move(-1, 0)", show=False),
+        Binding("right", "move(1, 0)", show=False),
+        Binding("shift+up", "move(0, -8)", show=False),
+        Binding("shift+down", "move(0, 8)", show=False),
+        Binding("shift+left", "move(-8, 0)", show=False),
+        Binding("shift+right", "move(8, 0)", show=False),
+    ]
+    DEMO_SHOTS = 3
+
+    def __init__(self, session: Session) -> None:
+        """``session``: the session whose targets are marked; this screen changes it."""
+        super().__init__()
+        self.session = session
+        self.reduction = 1.0  # full-resolution px per px of the shown left view
+        self.protocol = "trupulse"
+        self.readings: list[str] = []  # the newest first, as shown
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal():
+            yield PixelView(cursor=True, id="aim")
+            with Vertical(id="side"):
+                yield Static("", id="link")
+                yield Static("", id="targets")
+                yield Static("", id="readings")
+        yield Input(placeholder="range in metres, then Enter (Esc: cancel)", id="range")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#range", Input).display = False
+        self._load_left()
+        self._show_targets()
+        app = host(self)
+        port, self.protocol = app.config.port, app.config.protocol
+        spec = self.session.rig().rangefinder
+        if port is None and spec is not None and spec.port is not None:
+            port, self.protocol = spec.port, spec.protocol
+        if app.config.demo is None and port is not None:
+            self._listen(port, 0)
+        elif app.config.demo is None:
+            self._link("no rangefinder port: type ranges with m")
+        else:
+            self._link("demo: mark a target (Enter), the simulated laser fires at it")
+
+    @work(thread=True, group="aim")
+    def _load_left(self) -> None:
+        session = self.session
+        try:
+            image, reduction = check_image(session, frames_at(session, "left")[-1])
+        except RigkitError as exc:
+            self.app.call_from_thread(self._link, str(exc))
+            return
+        self.reduction = reduction
+        self.app.call_from_thread(self._show_left, image)
+
+    def _show_left(self, image: np.ndarray) -> None:
+        self.query_one(PixelView).set_image(image)
+        self._show_targets()
+
+    def _current(self) -> Target | None:
+        """The newest target: readings go to it."""
+        targets = self.session.targets
+        return targets[-1] if targets else None
+
+    def _show_targets(self) -> None:
+        session = self.session
+        lines = ["[b]targets[/] (Enter marks one at the cursor)"]
+        for target in session.targets:
+            ranges = [r.slope_distance_m for r in target.readings]
+            mean = f"{sum(ranges) / len(ranges):.2f} m" if ranges else "no reading"
+            lines.append(f"{target.name} ({target.pixel[0]:.0f}, {target.pixel[1]:.0f}) "
+                         f"{len(ranges)}x {mean}")
+        view = self.query_one(PixelView)
+        if view.cursor is not None:
+            u, v = self._full(view.cursor)
+            lines.append(f"cursor ({u:.0f}, {v:.0f})  zoom {view.zoom}x")
+        self.query_one("#targets", Static).update("\n".join(lines))
+        scale = self.reduction
+        view.set_marks([Mark((t.pixel[0] + 0.5) / scale - 0.5, (t.pixel[1] + 0.5) / scale - 0.5,
+                             t.name) for t in session.targets])
+
+    def _full(self, cursor: tuple[int, int]) -> tuple[float, float]:
+        """A check-image pixel in the full-resolution left frame (centres at integers)."""
+        scale = self.reduction
+        return (cursor[0] + 0.5) * scale - 0.5, (cursor[1] + 0.5) * scale - 0.5
+
+    def action_move(self, du: int, dv: int) -> None:
+        self.query_one(PixelView).move_cursor(du, dv)
+        self._show_targets()
+
+    def action_zoom(self, steps: int) -> None:
+        self.query_one(PixelView).change_zoom(steps)
+        self._show_targets()
+
+    def action_mark(self) -> None:
+        view = self.query_one(PixelView)
+        if view.cursor is None:
+            return
+        session = self.session
+        taken = {t.name for t in session.targets}
+        name = next(f"T{n}" for n in range(1, len(taken) + 2) if f"T{n}" not in taken)
+        pixel = self._full(view.cursor)
+        self._changed(add_target(session, name, pixel))
+        self._show_targets()
+        demo = host(self).config.demo
+        if demo is not None:
+            self._listen(demo.laser_url(pixel), self.DEMO_SHOTS)
+
+    def action_manual(self) -> None:
+        entry = self.query_one("#range", Input)
+        entry.display = True
+        entry.focus()
+
+    def keyescape(self) -> None:
+        """Close the entry box; keys go to the screen again."""
+        self.query_one("#range", Input).display = False
+        self.set_focus(None)
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        self.keyescape()
+        text, event.input.value = event.value.strip(), ""
+        try:
+            value = float(text)
+        except ValueError:
+            self.notify(f"{text!r}: not a range in metres", severity="error")
+            return
+        self._add_reading(LaserReading(value, utc_now(), "manual"))
+
+    def _add_reading(self, reading: LaserReading) -> None:
+        target = self._current()
+        source = reading.source.split(":", 1)[0]
+        self.readings.insert(
+            0, f"{reading.time_utc[11:19]} {reading.slope_distance_m:8.2f} m {source}")
+        del self.readings[6:]
+        if target is None:
+            self.readings[0] += "  (not kept: mark a target first)"
+        else:
+            try:
+                session = add_target(self.session, target.name, target.pixel,
+                                     window_px=target.window_px, readings=[reading])
+            except RigkitError as exc:
+                self.notify(str(exc), severity="error")
+                return
+            self._changed(session)
+            self.readings[0] += f"  -> {target.name}"
+        self.query_one("#readings", Static).update("[b]readings[/]\n" + "\n".join(self.readings))
+        self._show_targets()
+
+    def _changed(self, session: Session) -> None:
+        """Keep the session this screen changed, and tell the app."""
+        self.session = session
+        self.post_message(SessionChanged(session))
+
+    def _link(self, text: str) -> None:
+        self.query_one("#link", Static).update(f"[b]laser[/] {escape(text)}")
+
+    @work(thread=True, exclusive=True, group="laser")
+    def _listen(self, url: str, count: int) -> None:
+        """Readings from ``url`` until the screen closes (or ``count`` of them, if > 0)."""
+        worker = get_current_worker()
+        app = host(self)
+        protocol = self.protocol
+        got = 0
+        for item in follow(url, protocol, stopped=lambda: worker.is_cancelled or app.stop.is_set()):
+            if isinstance(item, LinkStatus):
+                self.app.call_from_thread(self._link, item.message)
+                continue
+            self.app.call_from_thread(self._add_reading,
+                                 reading_from_device(item, f"{protocol}:{url}"))
+            got += 1
+            if count and got >= count:
+                self.app.call_from_thread(self._link, f"{got} shots fired; mark the next target")
+                return
+
+    def on_unmount(self) -> None:
+        self.workers.cancel_group(self, "laser")
