@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from rigkit.capture.exif import ExifInfo, read_exif
-from rigkit.capture.frames import FrameFile, capture_problems, check_size
+from rigkit.capture.frames import FrameFile, capture_problems
 from rigkit.capture.rawio import load_linear_grey
 from rigkit.capture.session import (
     DEFAULT_WINDOW_PX,
@@ -150,13 +150,13 @@ def _checked_frame(session: Session, position: str, source: Path, staged: Path,
     problems = capture_problems(bursts, complete=False)
     if problems:
         raise InputError("; ".join(problems))
+    rig = session.rig()  # every frame has its size, so all frames agree
     try:
-        grey = load_linear_grey(staged, session.path / DERIVED_DIR, sha256)
+        grey = load_linear_grey(staged, session.path / DERIVED_DIR, sha256, rig.image_size,
+                                f"the rig profile {rig.name} is for")
     except InputError as exc:  # name the file the user gave, not the staged copy
         raise InputError(str(exc).replace(str(staged), str(source))) from None
     size = (grey.shape[1], grey.shape[0])
-    rig = session.rig()  # every frame has its size, so all frames agree
-    check_size(source, size, rig.image_size, f"the rig profile {rig.name} is for")
     return Frame(
         position=position,
         file="",  # where it will be stored in raw/

@@ -6,7 +6,7 @@ profile's tolerance. A different focal length breaks the one-f assumption the de
 scale rests on, so processing stops on it (:func:`capture_warnings`, unless forced);
 everything else is a warning. The image size is not taken from EXIF, which often
 describes a preview: the decoded frame's size is checked against the rig
-(:func:`rigkit.capture.frames.check_size`).
+(:func:`rigkit.capture.imagesize.check_size`).
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ command reads it:
   a picture (:func:`rigkit.capture.rawio.load_linear_grey`);
 * the set must make a capture (:func:`capture_problems`): every position present, no
   file at two positions or twice in a burst, RAW not mixed with ordinary images;
-* every frame must have the size of the others and of the rig (:func:`check_size`);
+* every frame must have the size of the others and of the rig, checked on its header
+  before it is decoded (:func:`rigkit.capture.imagesize.check_size`);
 * a position's burst is aligned and median-stacked, and the heat shimmer between the
   first two frames of the first burst is measured;
 * the three images are brought to one brightness scale.
@@ -114,20 +115,6 @@ def _identities(frame: FrameFile) -> list[object]:
     return keys
 
 
-def check_size(path: Path | str, size: tuple[int, int], expected: tuple[int, int],
-               whose: str) -> None:
-    """InputError naming the file and both sizes when a decoded frame of ``size`` (W, H)
-    is not ``expected``; ``whose`` says whose size that is ("the rig profile p1000 is
-    for", "the left frame raw/a.png is")."""
-    if size == expected:
-        return
-    turned = " (turned to portrait?)" if size == expected[::-1] else ""
-    raise InputError(
-        f"{path}: {size[0]}x{size[1]} px, but {whose} {expected[0]}x{expected[1]} px{turned};"
-        " all frames of a capture must have the rig's image size"
-    )
-
-
 def load_capture(
     bursts: Mapping[str, Sequence[FrameFile]],
     resolution: tuple[int, int] | None = None,
@@ -146,11 +133,10 @@ def load_capture(
     for position in POSITIONS:
         frames = []
         for frame in bursts[position]:
-            grey = load_linear_grey(frame.path, cache_dir, frame.sha256)
-            size = (grey.shape[1], grey.shape[0])
-            if expected is None:
-                expected, whose = size, f"the {position} frame {frame.shown} is"
-            check_size(frame.shown, size, expected, whose)
+            grey = load_linear_grey(frame.path, cache_dir, frame.sha256, expected, whose)
+            if expected is None:  # without a rig's size, the first frame's
+                expected = (grey.shape[1], grey.shape[0])
+                whose = f"the {position} frame {frame.shown} is"
             frames.append(grey)
         if shimmer is None and len(frames) > 1:
             shimmer = burst_shimmer(to_pipeline(frames[:2], linear=linear), position)

@@ -27,6 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from rigkit.capture.imagesize import check_size, header_size
 from rigkit.capture.picture import picture_problem
 from rigkit.core.chatter import captured_stderr
 from rigkit.core.files import write_png
@@ -96,7 +97,8 @@ def is_raw(path: str | Path) -> bool:
     return Path(path).suffix.lower() in RAW_SUFFIXES
 
 
-def decode_raw(path: str | Path) -> np.ndarray:
+def decode_raw(path: str | Path, expected: tuple[int, int] | None = None,
+               whose: str = "the rig is for") -> np.ndarray:
     """Decode a camera RAW file to linear RGB: (H, W, 3) uint16, 65535 = white level.
 
     LibRaw settings, and why:
@@ -125,9 +127,14 @@ def decode_raw(path: str | Path) -> np.ndarray:
     (:mod:`rigkit.core.chatter`) and read: a complaint that the data ends early refuses
     the file.
 
+    The size LibRaw will output is checked before it decodes (against ``expected``
+    (W, H), ``whose`` naming it, and the largest frame rigkit decodes:
+    :func:`rigkit.capture.imagesize.check_size`).
+
     Raises InputError naming the file when it is missing, not a RAW file LibRaw
     supports (a JPEG or PNG with a RAW file name, a GoPro GPR, an unknown camera), too
-    small to hold its image (an EXIF-only or stripped file), truncated or corrupt.
+    small to hold its image (an EXIF-only or stripped file), of the wrong size,
+    truncated or corrupt.
     """
     import rawpy
 
@@ -137,6 +144,7 @@ def decode_raw(path: str | Path) -> np.ndarray:
     try:
         with captured_stderr() as chatter, rawpy.imread(str(path)) as raw:
             _check_holds_image(path, raw.sizes.raw_width * raw.sizes.raw_height)
+            check_size(path, (raw.sizes.width, raw.sizes.height), expected, whose)
             rgb = raw.postprocess(
                 demosaic_algorithm=rawpy.DemosaicAlgorithm.AHD,
                 use_camera_wb=True,
@@ -198,7 +206,11 @@ def linear_grey(rgb16: np.ndarray) -> np.ndarray:
 
 
 def load_linear_grey(
-    path: str | Path, cache_dir: Path | None = None, sha256: str | None = None
+    path: str | Path,
+    cache_dir: Path | None = None,
+    sha256: str | None = None,
+    expected: tuple[int, int] | None = None,
+    whose: str = "the rig is for",
 ) -> np.ndarray:
     """Read one frame as (H, W) float32 grey in [0, 1] of full scale.
 
@@ -218,20 +230,33 @@ def load_linear_grey(
     EXIF Orientation is not applied.
 
     A freshly decoded frame must hold a picture (:func:`rigkit.capture.picture.
-    picture_problem`); only such a frame is cached, so a cached one has passed.
+    picture_problem`); only such a frame is cached, so a cached one has passed. Its
+    size must be ``expected`` (W, H) where given (``whose`` says whose size that is), and
+    within the largest frame rigkit decodes: checked on the file's header before it is
+    decoded, and on what was decoded (:func:`rigkit.capture.imagesize.check_size`).
 
-    Raises InputError naming the file when it is missing, cannot be decoded or holds no
-    picture, or naming the cache file when it cannot be written.
+    Raises InputError naming the file when it is missing, cannot be decoded, holds no
+    picture or has the wrong size, or naming the cache file when it cannot be written.
     """
     path = Path(path)
-    if not is_raw(path):
-        return _with_picture(path, _read_plain_grey(path))
+    if is_raw(path):
+        grey = _raw_grey(path, cache_dir, sha256, expected, whose)
+    else:
+        check_size(path, header_size(path), expected, whose)
+        grey = _with_picture(path, _read_plain_grey(path))
+    check_size(path, (grey.shape[1], grey.shape[0]), expected, whose)
+    return grey
+
+
+def _raw_grey(path: Path, cache_dir: Path | None, sha256: str | None,
+              expected: tuple[int, int] | None, whose: str) -> np.ndarray:
+    """A RAW frame's linear grey, from the cache where it holds it (see
+    :func:`load_linear_grey`)."""
     cache = _cache_path(cache_dir, sha256)
-    if cache is not None:
-        cached = _read_cache(cache)
-        if cached is not None:
-            return _from_u16(cached)
-    grey16 = _to_u16(linear_grey(decode_raw(path)))
+    cached = _read_cache(cache) if cache is not None else None
+    if cached is not None:
+        return _from_u16(cached)
+    grey16 = _to_u16(linear_grey(decode_raw(path, expected, whose)))
     grey = _with_picture(path, _from_u16(grey16))
     if cache is not None:
         _write_cache(cache, grey16)

@@ -33,10 +33,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rigkit.core.files import write_text
-from rigkit.core.yamlfile import KeyPath, read_strict_yaml
+from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.rig.profile import RigProfile, rig_from_data
 
@@ -192,9 +190,8 @@ def load_session(path: str | Path) -> Session:
 
 def save_session(session: Session) -> None:
     """Write ``session.yaml`` atomically (temporary file, fsync, rename)."""
-    text = "# rigkit capture session; edit with `rigkit session`\n" + yaml.safe_dump(
-        session_to_data(session), sort_keys=False, allow_unicode=True, default_flow_style=None
-    )
+    text = "# rigkit capture session; edit with `rigkit session`\n" + dump_yaml(
+        session_to_data(session))
     write_text(session.yaml_path, text)
 
 

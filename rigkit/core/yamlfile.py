@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import difflib
 import math
+import reprlib
+import stat
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,17 +25,17 @@ import yaml
 
 from rigkit.errors import InputError
 
+MAX_YAML_BYTES = 4 << 20
+"""The largest YAML file rigkit reads (a session with thousands of readings is ~1 MB)."""
 
-def read_strict_yaml(path: Path, what: str) -> Any:
-    """Parse a YAML file, rejecting duplicate keys; InputError names the file (``what``
-    it should be) and the line and column of a syntax error. An empty file is an error."""
+
+def read_strict_yaml(path: Path, what: str, max_bytes: int = MAX_YAML_BYTES) -> Any:
+    """Parse a YAML file, rejecting duplicate keys and alias bombs; InputError names the file
+    (``what`` it should be) and the line and column of a syntax error. An empty file is
+    an error; so is anything but a regular file (a device such as /dev/zero, a FIFO
+    that would block) and a file over ``max_bytes``."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such {what}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the {what} ({exc})") from None
+    text = _read_bounded(path, what, max_bytes)
     try:
         data = yaml.load(text, Loader=_StrictLoader)
     except yaml.MarkedYAMLError as exc:
@@ -48,8 +50,78 @@ def read_strict_yaml(path: Path, what: str) -> Any:
     return data
 
 
+def _read_bounded(path: Path, what: str, max_bytes: int) -> str:
+    """The text of ``path``, a regular file of at most ``max_bytes``; InputError otherwise."""
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such {what}") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(f"{path}: not a regular file (a device, FIFO or folder); give the "
+                         f"{what}'s YAML file")
+    try:
+        with path.open("rb") as handle:
+            data = handle.read(max_bytes + 1)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    if len(data) > max_bytes:
+        raise InputError(f"{path}: over {max_bytes >> 20} MB: too large for a {what}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not text (UTF-8 expected): not a {what}") from None
+
+
+def dump_yaml(data: Any) -> str:
+    """``data`` (plain dicts, lists, numbers and text) as YAML that :func:`read_strict_yaml`
+    reads back: keys in their given order, nested lists inline, and no aliases (PyYAML
+    writes one for an object met twice; the reader refuses them)."""
+    return yaml.dump(data, Dumper=_PlainDumper, sort_keys=False, allow_unicode=True,
+                     default_flow_style=None)
+
+
+class _PlainDumper(yaml.SafeDumper):
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+
+MAX_YAML_VALUES = 1_000_000
+"""The most values a YAML document may stand for once its aliases are expanded."""
+
+
 class _StrictLoader(yaml.SafeLoader):
-    """A SafeLoader that rejects a key written twice in one mapping (YAML keeps the last)."""
+    """A SafeLoader that rejects a key written twice in one mapping (YAML keeps the last)
+    and a document whose aliases (``*name``) expand to more than ``MAX_YAML_VALUES``
+    values: a few kilobytes of nested aliases stand for billions (a "billion laughs"
+    bomb), which anything walking the data would then take minutes and gigabytes for.
+    The expanded size is counted on the composed graph, shared nodes once each."""
+
+    def compose_document(self) -> Any:
+        node = super().compose_document()
+        if _expanded_size(node, {}) > MAX_YAML_VALUES:
+            raise yaml.composer.ComposerError(
+                None, None, f"its aliases (*name) expand to over {MAX_YAML_VALUES:,} values",
+                node.start_mark)
+        return node
+
+
+def _expanded_size(node: yaml.Node, known: dict[int, int]) -> int:
+    """How many values ``node`` stands for with every alias written out (memoised by
+    node: an alias is the node it names, met again)."""
+    if id(node) in known:
+        return known[id(node)]
+    known[id(node)] = 1  # a node that contains itself counts once
+    if isinstance(node, yaml.SequenceNode):
+        size = 1 + sum(_expanded_size(child, known) for child in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        size = 1 + sum(_expanded_size(k, known) + _expanded_size(v, known)
+                       for k, v in node.value)
+    else:
+        size = 1
+    known[id(node)] = min(size, MAX_YAML_VALUES + 1)
+    return known[id(node)]
 
 
 def _construct_unique_mapping(loader: _StrictLoader, node: yaml.MappingNode) -> dict[Any, Any]:
@@ -73,9 +145,14 @@ _StrictLoader.add_constructor(
 )
 
 
+_SHOW = reprlib.Repr()
+_SHOW.maxlevel, _SHOW.maxlist, _SHOW.maxdict, _SHOW.maxstring, _SHOW.maxother = 2, 4, 4, 50, 50
+
+
 def show(value: Any) -> str:
-    """``repr(value)`` cut to 60 characters, for error messages."""
-    shown = repr(value)
+    """A short repr of ``value`` for error messages: at most 60 characters, built from a
+    bounded part of it (``reprlib``), so a huge value costs no more than a small one."""
+    shown = _SHOW.repr(value)
     return shown if len(shown) <= 60 else shown[:57] + "..."
 
 

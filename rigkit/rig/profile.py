@@ -32,9 +32,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-import yaml
-
-from rigkit.core.yamlfile import KeyPath, read_strict_yaml
+from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.geometry import Distortion
 from rigkit.pipeline import RigGeometry
@@ -348,9 +346,7 @@ def rig_to_dict(profile: RigProfile) -> dict[str, Any]:
 
 def dump_rig(profile: RigProfile) -> str:
     """The profile as YAML text that :func:`load_rig` reads back to an equal profile."""
-    return yaml.safe_dump(
-        rig_to_dict(profile), sort_keys=False, default_flow_style=None, allow_unicode=True
-    )
+    return dump_yaml(rig_to_dict(profile))
 
 
 def _baseline_to_dict(baseline: Baseline) -> dict[str, float]:

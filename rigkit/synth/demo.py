@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from rigkit.core.files import write_text
+from rigkit.core.yamlfile import dump_yaml
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.session import rig_for_scene
 
@@ -100,5 +100,5 @@ def prepare_demo(root: Path, seed: int = DEMO_SEED, size: tuple[int, int] = DEMO
     write_scene(scene, demo.scene)
     demo.card.mkdir(parents=True, exist_ok=True)
     demo.capture.mkdir(parents=True, exist_ok=True)
-    write_text(demo.rig, yaml.safe_dump(rig_for_scene(scene), sort_keys=False))
+    write_text(demo.rig, dump_yaml(rig_for_scene(scene)))
     return demo

@@ -18,9 +18,9 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from rigkit.core.files import write_npy, write_png, write_text
+from rigkit.core.yamlfile import dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Camera, distortion_coefficients
 from rigkit.synth.render import expose, render_view
@@ -78,7 +78,7 @@ def write_scene(
         "gains": scene.gains,
         "geometry": scene.description(),
     }
-    write_text(out_dir / SCENE_FILE, yaml.safe_dump(meta, sort_keys=False))
+    write_text(out_dir / SCENE_FILE, dump_yaml(meta))
     return timings
 
 
@@ -132,7 +132,7 @@ def load_scene(path: str | Path) -> SceneTruth:
     if not meta_path.is_file():
         raise InputError(f"{path}: not a scene folder (no {SCENE_FILE})")
     try:
-        meta = yaml.safe_load(meta_path.read_text())
+        meta = read_strict_yaml(meta_path, "scene description")
         cams = {}
         for name in VIEWS:
             c = meta["cameras"][name]
@@ -158,5 +158,5 @@ def load_scene(path: str | Path) -> SceneTruth:
             seed=int(meta.get("seed", 0)),
             params=_params(meta.get("params") or {}),
         )
-    except (KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
+    except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{meta_path}: malformed scene description ({exc!r})") from None

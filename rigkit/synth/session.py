@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from rigkit.capture import (
     LaserReading,
@@ -25,6 +24,7 @@ from rigkit.capture import (
     utc_now,
 )
 from rigkit.core.files import write_text
+from rigkit.core.yamlfile import dump_yaml
 from rigkit.synth.evaluate import visible_in_right
 from rigkit.synth.io import VIEWS, frame_name, load_scene, write_scene
 from rigkit.synth.scene import Scene
@@ -101,7 +101,7 @@ def session_from_rendered(
     for renderings stored as RAW) move into ``raw/`` (copied, then the originals
     removed).
     """
-    write_text(out_dir / RIG_FILE, yaml.safe_dump(rig_for_scene(scene), sort_keys=False))
+    write_text(out_dir / RIG_FILE, dump_yaml(rig_for_scene(scene)))
     session = create_session(out_dir, out_dir / RIG_FILE,
                              notes=f"synthetic scene, seed {scene.seed}")
     for view in VIEWS:

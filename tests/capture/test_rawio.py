@@ -180,7 +180,7 @@ def test_cache_is_written_once_and_read_back(
     assert [p.name for p in capture.iterdir()] == ["left.dng"]  # nothing next to the RAW
     assert _sha256(path) == sha  # input untouched
 
-    def no_decoding(_path: object) -> np.ndarray:
+    def no_decoding(*_args: object) -> np.ndarray:
         raise AssertionError("decoded again instead of reading the cache")
 
     monkeypatch.setattr(rawio, "decode_raw", no_decoding)
