@@ -23,7 +23,7 @@ import numpy as np
 from rigkit import __version__
 from rigkit.batch.compare import compare_target
 from rigkit.batch.depthrun import run_depth
-from rigkit.capture.actions import frame_problems, session_frames
+from rigkit.capture.actions import changing, frame_problems, session_frames
 from rigkit.capture.comparisons import LOG_NAME, Comparison, append_rows, csv_text
 from rigkit.capture.session import (
     DERIVED_DIR,
@@ -31,7 +31,6 @@ from rigkit.capture.session import (
     Session,
     load_session,
     log_event,
-    session_lock,
     utc_now,
 )
 from rigkit.core.files import Content, replace_folder
@@ -75,15 +74,15 @@ def process_session(
 
     Nothing under ``raw/`` is touched; ``results/`` is replaced only once the new
     results are completely written. The session is locked meanwhile
-    (:func:`rigkit.capture.session.session_lock`): a change to it waits, or is refused
-    with who holds it.
+    (:func:`rigkit.capture.actions.changing`, which first repairs what an interrupted
+    command left): a change to it waits, or is refused with who holds it.
     """
     t0 = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
     path = Path(path)
     load_session(path)  # a clear error for a folder that is no session, before locking
-    with session_lock(path, "process", wait_s=0.0):
-        return _process_locked(load_session(path), run_id, force, report, t0)
+    with changing(path, "process", wait_s=0.0) as session:
+        return _process_locked(session, run_id, force, report, t0)
 
 
 def _process_locked(

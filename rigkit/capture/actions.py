@@ -9,6 +9,7 @@ atomically and logged in ``history.log``.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import os
 from collections.abc import Iterator, Sequence
@@ -17,14 +18,17 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.exif import ExifInfo, read_exif
 from rigkit.capture.frames import FrameFile, capture_problems
 from rigkit.capture.rawio import load_linear_grey
 from rigkit.capture.session import (
     DEFAULT_WINDOW_PX,
     DERIVED_DIR,
+    EDIT_WAIT_S,
     POSITIONS,
     RAW_DIR,
+    RESULTS_DIR,
     SESSION_FILE,
     STAGING_DIR,
     Frame,
@@ -39,8 +43,9 @@ from rigkit.capture.session import (
     session_lock,
     utc_now,
 )
-from rigkit.core.files import file_sha256, fsync_folder, temp_file
+from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
 from rigkit.errors import InputError
+from rigkit.rangefinder.ranging import max_range_m
 from rigkit.rig.profile import load_rig, rig_to_dict
 
 
@@ -116,9 +121,7 @@ def add_frame(
     source = Path(source)
     if not source.is_file():
         raise InputError(f"{source}: no such file")
-    with session_lock(session.path, "add-frame"):
-        current = load_session(session.path)
-        clean_staging(current.path)
+    with changing(session.path, "add-frame") as current:
         with _staged(current.path, source) as (staged, sha256):
             frame = _checked_frame(current, position, source, staged, sha256,
                                    replace_existing, burst, origin)
@@ -166,6 +169,61 @@ def _checked_frame(session: Session, position: str, source: Path, staged: Path,
         source=origin or str(source.resolve()),
         exif=exif_fields(read_exif(staged)),
     )
+@contextmanager
+def changing(path: Path, action: str, wait_s: float = EDIT_WAIT_S) -> Iterator[Session]:
+    """The session at ``path`` as it is on disk, for a change made under its lock
+    (:func:`rigkit.capture.session.session_lock`; ``action`` names the change for
+    others), after repairing what an interrupted command left (:func:`repair_session`)."""
+    with session_lock(path, action, wait_s):
+        repair_session(path)
+        yield load_session(path)
+
+
+def repair_session(path: Path) -> None:
+    """Undo what a crash or ``kill -9`` left in the session folder ``path`` (under its
+    lock): staged copies of frames; a results swap stopped between its renames
+    (:func:`rigkit.core.files.recover_folder`); a run whose results were swapped in but
+    whose rows never reached the comparisons log (they are appended from
+    ``results/comparisons.csv``)."""
+    clean_staging(path)
+    recover_folder(path, RESULTS_DIR)
+    done = path / RESULTS_DIR / LOG_NAME
+    if not done.is_file():
+        return
+    rows = read_rows(done)
+    log = path / LOG_NAME
+    logged = {row.run_id for row in read_rows(log)} if log.is_file() else set()
+    missing = [row for row in rows if row.run_id not in logged]
+    if missing:
+        append_rows(log, missing)
+        log_event(path, "repair", f"run {missing[0].run_id}: its {len(missing)} rows appended "
+                  "to the comparisons log after an interrupted run")
+
+
+def stale_results(session: Session) -> str | None:
+    """Why ``results/`` no longer shows this session (frames or targets changed since
+    the run that wrote it), or None."""
+    meta_path = session.path / RESULTS_DIR / "depth.json"
+    if not meta_path.is_file():
+        return None
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        recorded = {pos: [f.get("sha256") for f in meta["frames"][pos]] for pos in POSITIONS}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return "results/depth.json is unreadable; process again"
+    current = {pos: [f.sha256 for f in session.bursts.get(pos, ())] for pos in POSITIONS}
+    run = meta.get("run_id", "?")
+    if recorded != current:
+        return f"results/ are from run {run}, before the frames changed; process again"
+    done = session.path / RESULTS_DIR / LOG_NAME
+    rows = read_rows(done) if done.is_file() else []
+    compared = {(r.target, r.u, r.v, r.laser_readings) for r in rows}
+    targets = {(t.name, t.pixel[0], t.pixel[1], len(t.readings)) for t in session.targets}
+    if compared != targets:
+        return f"results/ are from run {run}, before the targets changed; process again"
+    return None
+
+
 def session_frames(session: Session) -> dict[str, tuple[FrameFile, ...]]:
     """The session's frames as the depth run takes them (position -> its burst)."""
     return {pos: tuple(FrameFile(session.path / f.file, f.sha256, f.file) for f in burst)
@@ -248,17 +306,28 @@ def add_target(
     readings: Sequence[LaserReading] = (),
     note: str = "",
 ) -> Session:
-    """Add a target, or add readings to an existing one of the same name.
+    """Add a target, or add readings to an existing one of the same name; returns the
+    session as saved.
 
     The pixel must lie inside the left frame (when it is known) and the window must be an
-    odd number of pixels.
+    odd number of pixels. The change is made under the session's lock on the session as
+    it is on disk then (:func:`changing`), so readings added at once all land.
     """
     check_name(name, "target name")
     if window_px < 1 or window_px % 2 == 0:
         raise InputError(f"--window {window_px}: expected an odd number of pixels (e.g. 9)")
+    longest = max_range_m(session.rig())
     for reading in readings:
-        if not (math.isfinite(reading.slope_distance_m) and reading.slope_distance_m > 0):
-            raise InputError(f"range {reading.slope_distance_m}: expected a positive distance")
+        if not (math.isfinite(reading.slope_distance_m) and
+                0 < reading.slope_distance_m <= longest):
+            raise InputError(f"range {reading.slope_distance_m:g} m: expected a distance "
+                             f"the rangefinder can measure (0-{longest:g} m)")
+    with changing(session.path, "add-target") as current:
+        return _add_target(current, name, pixel, window_px, readings, note)
+
+
+def _add_target(session: Session, name: str, pixel: tuple[float, float], window_px: int,
+                readings: Sequence[LaserReading], note: str) -> Session:
     existing = {t.name: t for t in session.targets}
     if name in existing:
         old = existing[name]

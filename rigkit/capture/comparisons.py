@@ -15,11 +15,11 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
+from rigkit.core.files import append_whole
 from rigkit.errors import InputError
 
 LOG_NAME = "comparisons.csv"
@@ -96,24 +96,29 @@ def csv_text(rows: Sequence[Comparison], header: bool = True) -> str:
 def append_rows(path: Path, rows: Sequence[Comparison]) -> None:
     """Append rows to the log at ``path``, writing the header if the file is new.
 
-    The rows go in with a single write on a file opened for appending, so a crash leaves
-    either all of this run's rows or none of them (short of a full disk).
+    The rows land whole or not at all (:func:`rigkit.core.files.append_whole`: a full
+    disk leaves the log as it was). OSError if they cannot be written.
     """
-    text = csv_text(rows, header=not path.exists() or path.stat().st_size == 0)
-    with path.open("a", encoding="utf-8", newline="") as handle:
-        handle.write(text)
-        handle.flush()
-        os.fsync(handle.fileno())
+    append_whole(path, csv_text(rows, header=not path.exists() or path.stat().st_size == 0))
 
 
-def read_rows(path: Path) -> list[Comparison]:
-    """Every row of a comparisons log; InputError naming the file and line if malformed."""
+def read_rows(path: Path, torn: list[str] | None = None) -> list[Comparison]:
+    """Every row of a comparisons log; InputError naming the file when it is no log.
+
+    A row that does not parse (what a crash or a full disk mid-append leaves, in rigkit
+    before append_whole) is skipped, and said in ``torn`` ("line 7: ...") when a list is
+    given, so one damaged row does not make the whole history unreadable."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: no comparisons log (run `rigkit process` first)") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: cannot read the comparisons log ({exc})") from None
+    if text and not text.endswith("\n") and "\n" in text:
+        # A last line without its newline was cut short, even if what is left parses.
+        text = text[: text.rindex("\n") + 1]
+        if torn is not None:
+            torn.append(f"{path}: the last line was cut short and was skipped")
     reader = csv.DictReader(io.StringIO(text))
     if reader.fieldnames is None:
         return []
@@ -125,7 +130,8 @@ def read_rows(path: Path) -> list[Comparison]:
         try:
             rows.append(_parse(record))
         except (TypeError, ValueError) as exc:
-            raise InputError(f"{path}: line {number}: {exc}") from None
+            if torn is not None:
+                torn.append(f"{path}: line {number} is damaged and was skipped ({exc})")
     return rows
 
 

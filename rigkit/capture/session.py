@@ -33,7 +33,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from rigkit.core.files import write_text
+from rigkit.core.files import append_whole, write_text
 from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.rig.profile import RigProfile, rig_from_data
@@ -229,6 +229,22 @@ def session_lock(path: Path, action: str, wait_s: float = EDIT_WAIT_S) -> Iterat
             handle.truncate(0)  # a holder's name outlives it only if it is killed
 
 
+def lock_holder(path: Path) -> str | None:
+    """Who holds the session folder ``path``'s lock ("being processed by PID 4242 since
+    ..."), or None when nobody does. Takes nothing: the lock is tried and let go."""
+    try:
+        handle = open(path / LOCK_FILE)
+    except OSError:
+        return None
+    with handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return _holder(handle)
+        fcntl.flock(handle, fcntl.LOCK_UN)
+        return None
+
+
 def _holder(handle: Any) -> str:
     """Who holds the lock, from what its holder wrote into the lock file."""
     handle.seek(0)
@@ -241,10 +257,9 @@ def _holder(handle: Any) -> str:
 
 
 def log_event(session_path: Path, action: str, detail: str) -> None:
-    """Append one line to the session's ``history.log`` (never rewritten)."""
-    line = f"{utc_now()}  {action:<12} {detail}\n"
-    with (session_path / HISTORY_FILE).open("a", encoding="utf-8") as handle:
-        handle.write(line)
+    """Append one line to the session's ``history.log`` (never rewritten; whole or not
+    at all, :func:`rigkit.core.files.append_whole`)."""
+    append_whole(session_path / HISTORY_FILE, f"{utc_now()}  {action:<12} {detail}\n")
 
 
 def _session_from_data(data: Any, path: Path) -> Session:

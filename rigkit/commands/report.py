@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 EXAMPLE = """example:
@@ -76,7 +77,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("no session folders given (e.g. rigkit report capture/field-1 --out DIR)")
     formats = _formats(args.format)
     _check_out(args.out, args.sessions)
-    rows = collect(args.sessions, all_runs=args.all_runs)
+    torn: list[str] = []
+    rows = collect(args.sessions, all_runs=args.all_runs, torn=torn)
+    for problem in torn:
+        print(f"warning: {problem}", file=sys.stderr)
     text = format_text(rows, summarize(rows))
     files: dict[str, str | bytes] = {"comparisons.csv": csv_text(rows), "report.txt": text}
     for stem, plot in zip(PLOTS, (plot_estimate_vs_laser, plot_error_vs_range), strict=True):

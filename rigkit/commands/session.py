@@ -61,8 +61,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="side of the square window the estimate is taken over, px "
                         "(odd, default 9)")
     source = target.add_mutually_exclusive_group(required=True)
-    source.add_argument("--range-m", type=float, nargs="+", metavar="R",
-                        help="laser slope distance(s) typed in, metres")
+    source.add_argument("--range-m", nargs="+", metavar="R",
+                        help="laser slope distance(s) typed in, metres (up to the rig "
+                        "profile's rangefinder.max_range_m)")
     source.add_argument("--device", nargs="?", const="rig", metavar="URL",
                         help="read from a rangefinder: a serial port or pyserial URL "
                         "(default: the rig profile's port)")
@@ -125,7 +126,7 @@ def run_add_target(args: argparse.Namespace) -> int:
     session = load_session(args.session)
     name = args.name or _next_name(session)
     if args.range_m is not None:
-        readings = _typed_readings(args.range_m, args.inclination)
+        readings = _typed_readings(session, args.range_m, args.inclination)
     else:
         readings = _device_readings(session, args)
     session = add_target(session, name, tuple(args.pixel), window_px=args.window,
@@ -145,10 +146,12 @@ def _next_name(session: Any) -> str:
     return f"T{n}"
 
 
-def _typed_readings(ranges: list[float], inclination: float | None) -> list[Any]:
+def _typed_readings(session: Any, ranges: list[str], inclination: float | None) -> list[Any]:
     from rigkit.capture import LaserReading, utc_now
+    from rigkit.rangefinder.ranging import parse_typed_range
 
-    return [LaserReading(r, utc_now(), "manual", inclination) for r in ranges]
+    return [LaserReading(parse_typed_range(r, session.rig()), utc_now(), "manual", inclination)
+            for r in ranges]
 
 
 def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
@@ -190,8 +193,14 @@ def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
 
 def run_show(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
+    from rigkit.capture.actions import changing
+    from rigkit.errors import InputError
 
-    session = load_session(args.session)
+    try:  # repair what an interrupted command left, where the session can be changed
+        with changing(args.session, "show", wait_s=0.0) as session:
+            pass
+    except InputError:  # busy, or read-only: show it as it is
+        session = load_session(args.session)
     if args.json:
         print(json.dumps(_show_data(session), indent=2))
     else:
@@ -211,14 +220,22 @@ def _show_data(session: Any) -> dict[str, Any]:
 
 
 def _last_rows(session: Any) -> list[Any]:
+    import sys
+
     from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
 
     log = session.path / LOG_NAME
-    return latest_run(read_rows(log)) if log.is_file() else []
+    torn: list[str] = []
+    rows = latest_run(read_rows(log, torn)) if log.is_file() else []
+    for problem in torn:
+        print(f"warning: {problem}", file=sys.stderr)
+    return rows
 
 
 def _show_text(session: Any) -> str:
     from rigkit.capture import POSITIONS, frame_problems
+    from rigkit.capture.actions import stale_results
+    from rigkit.capture.session import lock_holder
 
     lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
     if session.operator:
@@ -246,6 +263,8 @@ def _show_text(session: Any) -> str:
                      f"window {target.window_px}  laser [{ranges}] m  {target.note}".rstrip())
     problems = frame_problems(session)
     lines.append("status   " + ("ready to process" if not problems else "; ".join(problems)))
+    for note in filter(None, (lock_holder(session.path), stale_results(session))):
+        lines.append(f"         {note}")
     rows = _last_rows(session)
     if rows:
         lines.append(f"last run {rows[0].run_id}")

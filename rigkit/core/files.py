@@ -54,6 +54,37 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
+def append_whole(path: Path, text: str) -> None:
+    """Append ``text`` (whole lines, UTF-8) to the log at ``path``: it lands whole or not
+    at all. The file's size is noted first; a write that fails part way (a full disk)
+    is truncated back to it, so no half line is left for the next append to glue onto.
+    A file that does not end with a newline (a torn line from a crash mid-write) gets
+    one first, leaving that fragment a line of its own. OSError if the write fails."""
+    data = text.encode("utf-8")
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    try:
+        size = os.fstat(fd).st_size
+        if size and _last_byte(path) != b"\n":
+            data = b"\n" + data
+        try:
+            written = 0
+            while written < len(data):
+                written += os.write(fd, data[written:])
+            os.fsync(fd)
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, size)
+            raise
+    finally:
+        os.close(fd)
+
+
+def _last_byte(path: Path) -> bytes:
+    with Path(path).open("rb") as handle:
+        handle.seek(-1, os.SEEK_END)
+        return handle.read(1)
+
+
 def check_writable_folder(folder: Path, what: str) -> None:
     """Create ``folder`` if need be and make sure files can be written in it, before
     long work whose result would go there; InputError naming ``what`` otherwise."""

@@ -100,7 +100,7 @@ class _StrictLoader(yaml.SafeLoader):
 
     def compose_document(self) -> Any:
         node = super().compose_document()
-        if _expanded_size(node, {}) > MAX_YAML_VALUES:
+        if node is not None and _expanded_size(node, {}) > MAX_YAML_VALUES:
             raise yaml.composer.ComposerError(
                 None, None, f"its aliases (*name) expand to over {MAX_YAML_VALUES:,} values",
                 node.start_mark)

@@ -9,6 +9,7 @@ horizontal, azimuth clockwise from north as the device reports it.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -119,6 +120,29 @@ class ProtocolSpec:
     request: bytes
     request_by_default: bool
     min_request_interval_s: float
+    max_range_m: float
+    """The longest range the device family measures, m: a reading beyond it is a
+    garbled sentence, refused by the parser."""
+
+
+_DECIMAL = re.compile(r"[+-]?[0-9]+(\.[0-9]+)?")
+
+
+def parse_decimal(text: str, what: str) -> float:
+    """A number written as devices and people write one: digits with an optional sign
+    and decimals. Python's ``float`` also takes "1e300", "3_0_2.00", "inf" and "nan",
+    which no rangefinder sends: FrameError naming ``what`` for those."""
+    if not _DECIMAL.fullmatch(text.strip()):
+        raise FrameError(f"{what} {text!r} is not a number")
+    return float(text)
+
+
+def check_range(distance_m: float, max_range_m: float, what: str) -> float:
+    """``distance_m`` when it is a range the device can measure (0 < r <= max); a
+    FrameError naming ``what`` otherwise."""
+    if not 0.0 < distance_m <= max_range_m:
+        raise FrameError(f"{what} {distance_m:g} m is beyond the device's 0-{max_range_m:g} m")
+    return distance_m
 
 
 def escape_bytes(data: bytes) -> str:

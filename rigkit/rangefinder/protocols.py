@@ -28,8 +28,13 @@ from __future__ import annotations
 
 from rigkit.errors import InputError
 from rigkit.rangefinder.framing import ProtocolSpec
-from rigkit.rangefinder.trupulse import parse_trupulse, split_trupulse
-from rigkit.rangefinder.vectronix import parse_vectronix, split_vectronix, vectronix_frame
+from rigkit.rangefinder.trupulse import TRUPULSE_MAX_RANGE_M, parse_trupulse, split_trupulse
+from rigkit.rangefinder.vectronix import (
+    VECTRONIX_MAX_RANGE_M,
+    parse_vectronix,
+    split_vectronix,
+    vectronix_frame,
+)
 
 PROTOCOLS: dict[str, ProtocolSpec] = {
     "trupulse": ProtocolSpec(
@@ -42,6 +47,7 @@ PROTOCOLS: dict[str, ProtocolSpec] = {
         request=b"$GO\r\n",
         request_by_default=False,
         min_request_interval_s=0.0,
+        max_range_m=TRUPULSE_MAX_RANGE_M,
     ),
     "vectronix": ProtocolSpec(
         name="vectronix",
@@ -53,6 +59,7 @@ PROTOCOLS: dict[str, ProtocolSpec] = {
         request_by_default=True,
         # The integrator manuals require the host to keep requests <= 2 Hz (eye safety).
         min_request_interval_s=0.5,
+        max_range_m=VECTRONIX_MAX_RANGE_M,
     ),
 }
 

@@ -23,10 +23,38 @@ from __future__ import annotations
 import math
 
 from rigkit.errors import InputError
+from rigkit.rangefinder.framing import FrameError, check_range, parse_decimal
+from rigkit.rangefinder.protocols import PROTOCOLS
 from rigkit.rig.profile import RigProfile
+
+MANUAL_MAX_RANGE_M = 5000.0
+"""The longest range accepted when readings are typed in and the rig profile names no
+``rangefinder.max_range_m``: beyond handheld lasers, far beyond rigkit's 200-500 m."""
 
 Offset = tuple[float, float, float]
 NO_OFFSET: Offset = (0.0, 0.0, 0.0)
+
+
+def max_range_m(profile: RigProfile) -> float:
+    """The longest laser range the rig's rangefinder can give, m: the profile's
+    ``rangefinder.max_range_m``, else its protocol's, else :data:`MANUAL_MAX_RANGE_M`."""
+    spec = profile.rangefinder
+    if spec is not None and spec.max_range_m is not None:
+        return spec.max_range_m
+    if spec is not None and spec.protocol in PROTOCOLS:
+        return PROTOCOLS[spec.protocol].max_range_m
+    return MANUAL_MAX_RANGE_M
+
+
+def parse_typed_range(text: str, profile: RigProfile) -> float:
+    """A range typed in by hand (``"312.4"``), in metres: digits with optional decimals,
+    positive and within :func:`max_range_m`; InputError naming the value otherwise (a
+    typo such as ``3000000`` for ``300.0``, or ``1e300``, never becomes a reading)."""
+    try:
+        value = parse_decimal(text, "range")
+        return check_range(value, max_range_m(profile), "range")
+    except FrameError as exc:
+        raise InputError(f"{exc} (type it in metres, e.g. 312.4)") from None
 
 
 def _direction(

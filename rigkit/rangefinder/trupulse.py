@@ -12,11 +12,14 @@ from rigkit.rangefinder.framing import (
     Notice,
     Reading,
     ascii_text,
+    parse_decimal,
     short,
     split_checksum,
     split_frames,
 )
 
+TRUPULSE_MAX_RANGE_M = 2000.0
+"""The longest range a TruPulse 200/360 measures (to a reflective target), m."""
 FOOT_M = 0.3048
 """One international foot in metres (exact)."""
 YARD_M = 0.9144
@@ -62,13 +65,14 @@ def _trupulse_distance(value: str, unit: str, what: str) -> tuple[float, bool | 
     number = value
     if dot and len(decimals) == 2 and decimals[1] in "01":
         number, quality = value[:-1], decimals[1] == "1"
-    try:
-        amount = float(number)
-    except ValueError:
-        raise FrameError(f"{what} {value!r} is not a number") from None
-    if not math.isfinite(amount) or amount < 0:
+    amount = parse_decimal(number, what)
+    if amount < 0:
         raise FrameError(f"{what} {value!r} is not a distance")
-    return round(amount * per_unit, 6), quality
+    metres = round(amount * per_unit, 6)
+    if metres > TRUPULSE_MAX_RANGE_M:
+        raise FrameError(f"{what} {metres:g} m is beyond the TruPulse's "
+                         f"{TRUPULSE_MAX_RANGE_M:g} m")
+    return metres, quality
 
 
 def _angle(value: str, unit: str, what: str) -> float | None:
@@ -76,14 +80,15 @@ def _angle(value: str, unit: str, what: str) -> float | None:
         return None
     if unit != "D":
         raise FrameError(f"unknown {what} unit {unit!r} (expected D)")
-    try:
-        angle = float(value)
-    except ValueError:
-        raise FrameError(f"{what} {value!r} is not a number") from None
-    if not math.isfinite(angle):
-        raise FrameError(f"{what} {value!r} is not a number")
+    angle = parse_decimal(value, what)
+    low, high = _ANGLES[what]
+    if not low <= angle <= high:
+        raise FrameError(f"{what} {angle:g} deg is outside {low:g}-{high:g} deg")
     return angle
 
+
+_ANGLES = {"inclination": (-90.0, 90.0), "azimuth": (0.0, 360.0)}
+"""The range of each angle a TruPulse reports, degrees."""
 
 # Number of data fields after the message type, per TruPulse sentence type.
 _TRUPULSE_FIELDS = {"HV": 8, "ML": 8, "HT": 2}

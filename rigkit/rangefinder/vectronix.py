@@ -10,6 +10,7 @@ from rigkit.rangefinder.framing import (
     Notice,
     Reading,
     ascii_text,
+    check_range,
     short,
     split_checksum,
     split_frames,
@@ -25,6 +26,9 @@ VECTRONIX_NACK = {
 }
 """Meaning of the error id in a Vectronix ``>NA,<id>`` not-acknowledge frame."""
 
+VECTRONIX_MAX_RANGE_M = 25_000.0
+"""Longer than any Vectronix LRF module measures (their range fields hold up to 99,999.99
+m); a longer reading is a garbled frame."""
 VECTRONIX_TARGETS = (3, 5)
 """Target counts a Vectronix range request (``Md``) accepts."""
 
@@ -85,9 +89,10 @@ def parse_vectronix(frame: bytes, timestamp: float) -> Reading | Notice:
         if len(value) != 8 or value[0] not in "vRT":
             raise FrameError(f"malformed range field {value!r} in {short(text)!r}")
         if value[0] == "v":
-            if not value[1:].isdigit():
+            if not (value[1:].isascii() and value[1:].isdigit()):
                 raise FrameError(f"range {value!r} is not a number of centimetres")
-            ranges.append(int(value[1:]) / 100.0)
+            ranges.append(check_range(int(value[1:]) / 100.0, VECTRONIX_MAX_RANGE_M,
+                                      "Vectronix range"))
         else:
             codes.append(value)
     if not ranges:

@@ -42,13 +42,15 @@ _EPS_PCT = 1e-9  # a value logged as exactly 1 % counts as within 1 %
 # --------------------------------------------------------------------------- reading
 
 
-def collect(session_dirs: Iterable[Path], all_runs: bool = False) -> list[Comparison]:
+def collect(session_dirs: Iterable[Path], all_runs: bool = False,
+            torn: list[str] | None = None) -> list[Comparison]:
     """The comparison rows of the given session folders, in the order given.
 
     Each folder must hold ``comparisons.csv`` at its top level. By default only each
     session's newest run is kept; ``all_runs`` keeps every run. A folder given twice is
     read once. InputError (naming the folder or file) for a missing folder, a folder
-    without a log, or a malformed log.
+    without a log, or a file that is no log; damaged rows are skipped and said in
+    ``torn`` (:func:`rigkit.capture.comparisons.read_rows`).
     """
     rows: list[Comparison] = []
     seen: set[Path] = set()
@@ -58,16 +60,17 @@ def collect(session_dirs: Iterable[Path], all_runs: bool = False) -> list[Compar
         if key in seen:
             continue
         seen.add(key)
-        rows.extend(_session_rows(folder, all_runs))
+        rows.extend(_session_rows(folder, all_runs, torn))
     return rows
 
 
-def _session_rows(folder: Path, all_runs: bool) -> list[Comparison]:
+def _session_rows(folder: Path, all_runs: bool, torn: list[str] | None
+                  ) -> list[Comparison]:
     if not folder.exists():
         raise InputError(f"{folder}: no such session folder")
     if not folder.is_dir():
         raise InputError(f"{folder}: not a session folder (give the folder that holds {LOG_NAME})")
-    rows = read_rows(folder / LOG_NAME)
+    rows = read_rows(folder / LOG_NAME, torn)
     return rows if all_runs else latest_run(rows)
 
 

@@ -73,12 +73,15 @@ class RangefinderSpec:
     ``protocol`` names how readings arrive (``manual``: typed in by hand);
     ``port``/``baud`` for a serial device; ``offset_m`` is (right, up, forward) of
     its aperture from the left camera's optical centre, in metres, None if unknown.
+    ``max_range_m``: the longest range the device measures (None: its protocol's,
+    :func:`rigkit.rangefinder.ranging.max_range_m`); longer readings are refused.
     """
 
     protocol: str
     port: str | None
     baud: int | None
     offset_m: tuple[float, float, float] | None
+    max_range_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -267,7 +270,8 @@ def _back_offset(value: Any, key: KeyPath) -> tuple[float, float]:
 
 
 def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
-    keys = key.mapping(value, required=("protocol",), optional=("port", "baud", "offset"))
+    keys = key.mapping(value, required=("protocol",),
+                       optional=("port", "baud", "offset", "max_range_m"))
     protocol = keys["protocol"]
     if not isinstance(protocol, str) or not _PROTOCOL_PATTERN.fullmatch(protocol):
         raise key.child("protocol").error(
@@ -283,7 +287,12 @@ def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
         port=port,
         baud=baud,
         offset_m=key.optional(keys, "offset", _rangefinder_offset),
+        max_range_m=key.optional(keys, "max_range_m", _max_range),
     )
+
+
+def _max_range(value: Any, key: KeyPath) -> float:
+    return key.bounded(value, "m", _MAX_RANGE_M, low=1.0)
 
 
 def _rangefinder_offset(value: Any, key: KeyPath) -> tuple[float, float, float]:
@@ -361,4 +370,6 @@ def _rangefinder_to_dict(spec: RangefinderSpec) -> dict[str, Any]:
     if spec.offset_m is not None:
         right, up, forward = spec.offset_m
         data["offset"] = {"right_m": right, "up_m": up, "forward_m": forward}
+    if spec.max_range_m is not None:
+        data["max_range_m"] = spec.max_range_m
     return data

@@ -122,7 +122,7 @@ def test_targets_outside_the_image_and_even_windows_are_refused(tmp_path: Path) 
         add_target(session, "T1", (64.0, 10.0), readings=reading)
     with pytest.raises(InputError, match="odd"):
         add_target(session, "T1", (10.0, 10.0), window_px=8, readings=reading)
-    with pytest.raises(InputError, match="positive"):
+    with pytest.raises(InputError, match="can measure"):
         add_target(session, "T1", (10.0, 10.0), readings=[LaserReading(-1, "t", "manual")])
 
 

@@ -15,6 +15,7 @@ from rigkit.capture import LaserReading, Session, Target, add_target, utc_now
 from rigkit.capture.field import check_image, frames_at, reading_from_device
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow
+from rigkit.rangefinder.ranging import parse_typed_range
 from rigkit.tui.messages import SessionChanged
 from rigkit.tui.screens.common import StepScreen, escape, host
 from rigkit.tui.widgets import Mark, PixelView
@@ -153,9 +154,9 @@ class TargetsScreen(StepScreen):
         self.keyescape()
         text, event.input.value = event.value.strip(), ""
         try:
-            value = float(text)
-        except ValueError:
-            self.notify(f"{text!r}: not a range in metres", severity="error")
+            value = parse_typed_range(text, self.session.rig())
+        except RigkitError as exc:
+            self.notify(str(exc), severity="error")
             return
         self._add_reading(LaserReading(value, utc_now(), "manual"))
 
