@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 
 from rigkit import __version__
-from rigkit.errors import RigkitError
+from rigkit.errors import RigkitError, environment_message
 
 # Subcommand modules under rigkit.commands, in the order --help lists them.
 COMMANDS: tuple[str, ...] = (
@@ -53,6 +53,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Output piped into a reader that stopped (e.g. `| head`): not an error.
         sys.stderr.close()
         return 0
+    except OSError as exc:  # the machine's, not the input's: a full disk, a read-only folder
+        print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
+        return 2
     return code
 
 

@@ -3,8 +3,12 @@ concurrency, one failing session never stopping the others."""
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import multiprocessing
 import os
+import signal
+import sys
 import threading
 import time
 import traceback
@@ -15,7 +19,7 @@ from typing import Any
 
 from rigkit.batch.session import Outcome, StageReport, new_run_id, process_session
 from rigkit.capture.session import is_session, load_session, log_event
-from rigkit.errors import RigkitError
+from rigkit.errors import RigkitError, environment_message
 
 #: Memory a session needs, per pixel of one frame, at the peak of decoding and the
 #: pipeline (measured by benchmarks/bench_process.py), plus a fixed overhead.
@@ -32,6 +36,8 @@ def safe_process(
         return process_session(path, run_id, force=force, progress=progress)
     except RigkitError as exc:
         message = str(exc)
+    except OSError as exc:  # a full disk, a read-only session: the machine's, not a bug
+        message = environment_message(exc)
     except MemoryError:
         message = "out of memory (process fewer sessions at once: --jobs 1)"
     except Exception as exc:  # a bug must not stop the batch; the trace goes to the log
@@ -129,7 +135,7 @@ def _run_parallel(
     try:
         with ProcessPoolExecutor(
             max_workers=jobs, mp_context=context, initializer=_init_worker,
-            initargs=(queue, threads),
+            initargs=(queue, threads, os.getpid()),
         ) as pool:
             futures: dict[Future[Outcome], Path] = {
                 pool.submit(_worker_process, path, run_id, force): path for path in paths
@@ -162,14 +168,35 @@ def _relay(queue: Any, report: BatchReport) -> None:
 
 
 _worker_queue: Any = None
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 
-def _init_worker(queue: Any, threads: int) -> None:
+def _init_worker(queue: Any, threads: int, parent: int) -> None:
     import cv2
 
     global _worker_queue
     _worker_queue = queue
     cv2.setNumThreads(threads)
+    _die_with(parent)
+
+
+def _die_with(parent: int) -> None:
+    """End this worker when the process ``parent`` that started it dies (``kill -9``
+    of ``rigkit process``): otherwise it finishes its session and then blocks for ever
+    on the progress queue nobody reads. Linux delivers SIGKILL on the parent's death
+    (prctl PR_SET_PDEATHSIG); elsewhere a thread polls the parent id once a second."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:  # died before the request was made
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="parent-watch").start()
 
 
 def _worker_process(path: Path, run_id: str, force: bool) -> Outcome:

@@ -33,11 +33,14 @@ from rigkit.capture.session import (
     log_event,
     utc_now,
 )
-from rigkit.core.files import Content, replace_folder
+from rigkit.core.files import Content, check_free_space, replace_folder
 from rigkit.errors import InputError
 from rigkit.reporting.previews import preview_set
 
 StageReport = Callable[[str, float], None]
+RESULT_BYTES_PER_PIXEL = 12
+"""What a run writes into ``results/``, per pixel of a frame: depth and sigma (float32
+each) and the previews (10.9 bytes per pixel measured on the bundled example)."""
 
 
 def new_run_id() -> str:
@@ -91,6 +94,8 @@ def _process_locked(
     problems = frame_problems(session)
     if problems:
         raise InputError(f"{session.path}: " + "; ".join(problems))
+    width, height = session.rig().image_size
+    check_free_space(session.path, RESULT_BYTES_PER_PIXEL * width * height, str(session.path))
     try:
         run = run_depth(session_frames(session), session.rig(),
                         cache_dir=session.path / DERIVED_DIR, force=force,

@@ -80,6 +80,14 @@ def create_session(
     return session
 
 
+def create_session_in(folder: Path, name: str, rig_path: str | Path) -> Session:
+    """A new session called ``name`` inside the capture ``folder`` (:func:`create_session`);
+    ``name`` is a plain name, never a path: ``../x`` or ``/x`` would put the session
+    somewhere else."""
+    check_name(name, "session name")
+    return create_session(Path(folder) / name, rig_path)
+
+
 def _reference(rig_path: Path, session_path: Path) -> str:
     """How session.yaml names the rig file: relative if it is inside the session."""
     try:
@@ -309,7 +317,7 @@ def add_target(
     """Add a target, or add readings to an existing one of the same name; returns the
     session as saved.
 
-    The pixel must lie inside the left frame (when it is known) and the window must be an
+    The pixel must lie inside the rig's image and the window must be an
     odd number of pixels. The change is made under the session's lock on the session as
     it is on disk then (:func:`changing`), so readings added at once all land.
     """
@@ -356,31 +364,37 @@ def _add_target(session: Session, name: str, pixel: tuple[float, float], window_
 
 
 def check_target_inside(session: Session, target: Target) -> None:
-    """InputError if the target's pixel is outside the left frame (when known)."""
-    left = session.frames.get("left")
-    if left is None:
-        return
-    width, height = left.size_px
+    """InputError if the target's pixel is outside the left frame, or its window larger
+    than the frame (the rig's image size)."""
+    width, height = session.rig().image_size
     u, v = target.pixel
     if not (-0.5 <= u <= width - 0.5 and -0.5 <= v <= height - 0.5):
         raise InputError(
             f"{session.path}: target {target.name!r} pixel ({u:g}, {v:g}) is outside the "
             f"{width}x{height} left image"
         )
+    if target.window_px > min(width, height):
+        raise InputError(
+            f"{session.path}: target {target.name!r} window {target.window_px} px is larger "
+            f"than the {width}x{height} image")
 
 
 def frame_problems(session: Session) -> list[str]:
     """Why the session cannot be processed yet, by the rules processing applies
     (:func:`rigkit.capture.frames.capture_problems`): a position without a frame, one
     file at two positions, RAW mixed with other images; frames missing, altered since
-    ingest or not of the rig's image size; targets outside the image. Empty when it is
-    ready."""
+    ingest, links out of the session or not of the rig's image size; targets outside
+    the image or with windows larger than it. Empty when it is ready."""
     problems = capture_problems(session_frames(session))
     size = session.rig().image_size
+    inside = session.path.resolve()
     for position in POSITIONS:
         for frame in session.bursts.get(position, ()):
             path = session.path / frame.file
-            if not path.is_file():
+            if not path.resolve().is_relative_to(inside):
+                problems.append(f"{position} frame {frame.file} is a link to "
+                                f"{path.resolve()}, outside the session")
+            elif not path.is_file():
                 problems.append(f"{position} frame {frame.file} is missing")
             elif file_sha256(path) != frame.sha256:
                 problems.append(

@@ -273,6 +273,8 @@ def _session_from_data(data: Any, path: Path) -> Session:
         raise top_key.child("format").error(f"must be {FORMAT}", top["format"])
     rig_key = top_key.child("rig")
     rig = rig_key.mapping(top["rig"], required=("reference", "sha256", "values"))
+    if not isinstance(rig["values"], dict):  # its keys are the profile's to check
+        raise rig_key.child("values").error("must be a mapping of keys to values", rig["values"])
     frames_key = top_key.child("frames")
     frames_data = frames_key.mapping(top["frames"] or {}, required=(), optional=POSITIONS)
     bursts = {pos: _burst(v, frames_key.child(pos), pos) for pos, v in frames_data.items()}

@@ -19,6 +19,8 @@ from rigkit.rangefinder import (
     Reading,
     open_rangefinder,
 )
+from rigkit.rangefinder.driver import ReadTimeout
+from rigkit.rangefinder.protocols import default_protocol
 from rigkit.rangefinder.sim import SIM_OPTIONS, PtySimulator, parse_sim_url
 
 READ_EXAMPLE = """\
@@ -192,7 +194,7 @@ def _connection(args: argparse.Namespace) -> tuple[str, str, int | None]:
         baud = spec.baud if baud is None else baud
     if port is None:
         raise InputError("no port: pass --port URL (or --rig with a rangefinder.port)")
-    return port, protocol or "trupulse", baud
+    return port, protocol or default_protocol(port), baud
 
 
 def _open(args: argparse.Namespace, timeout: float) -> Rangefinder:
@@ -239,6 +241,29 @@ def _read(args: argparse.Namespace) -> int:
     return 0
 
 
+QUIET_NOTE_S = 10.0
+"""Without --timeout, ``log`` says every this many seconds that nothing has come."""
+
+
+def _next_reading(rangefinder: Rangefinder, args: argparse.Namespace) -> Reading:
+    """The next reading; without --timeout, waiting for ever but saying every
+    QUIET_NOTE_S what has arrived meanwhile (a wrong --protocol shows as frames that
+    are never readings)."""
+    trigger = True if args.trigger else None
+    if args.timeout is not None:
+        return rangefinder.read(trigger=trigger)
+    while True:
+        before = rangefinder.stats
+        try:
+            return rangefinder.read(timeout=QUIET_NOTE_S, trigger=trigger)
+        except ReadTimeout:
+            seen = rangefinder.stats.since(before)
+            hint = (f": not {rangefinder.protocol.name}? (--protocol)" if seen.frames
+                    else " (fire the laser, or check the cable and --baud)")
+            print(f"no reading in {QUIET_NOTE_S:g} s ({seen.describe()}){hint}",
+                  file=sys.stderr, flush=True)
+
+
 def _log(args: argparse.Namespace) -> int:
     timeout = math.inf if args.timeout is None else args.timeout
     count = 0
@@ -258,7 +283,7 @@ def _log(args: argparse.Namespace) -> int:
             try:
                 while args.count is None or count < args.count:
                     started = time.monotonic()
-                    reading = rangefinder.read(trigger=True if args.trigger else None)
+                    reading = _next_reading(rangefinder, args)
                     output.write(json.dumps(reading.to_json_dict()) + "\n")
                     output.flush()
                     os.fsync(output.fileno())

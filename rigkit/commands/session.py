@@ -122,19 +122,23 @@ def _print_exif_findings(session: Any) -> None:
 
 def run_add_target(args: argparse.Namespace) -> int:
     from rigkit.capture import add_target, load_session
+    from rigkit.errors import InputError
 
     session = load_session(args.session)
     name = args.name or _next_name(session)
+    stopped = None
     if args.range_m is not None:
         readings = _typed_readings(session, args.range_m, args.inclination)
     else:
-        readings = _device_readings(session, args)
+        readings, stopped = _device_readings(session, args)
     session = add_target(session, name, tuple(args.pixel), window_px=args.window,
                          readings=readings, note=args.note)
     target = session.target(name)
     ranges = ", ".join(f"{r.slope_distance_m:.2f}" for r in target.readings)
     print(f"target {name} at ({target.pixel[0]:g}, {target.pixel[1]:g}): "
           f"{len(target.readings)} reading(s) [{ranges}] m")
+    if stopped is not None:
+        raise InputError(stopped)
     return 0
 
 
@@ -154,13 +158,13 @@ def _typed_readings(session: Any, ranges: list[str], inclination: float | None) 
             for r in ranges]
 
 
-def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
-    from datetime import UTC, datetime
-
-    from rigkit.capture import LaserReading
-    from rigkit.errors import InputError
+def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any], str | None]:
+    """The readings of ``--shots`` shots from the device, and why it stopped early (None
+    when it did not): readings received before a lost device are kept, not thrown away."""
+    from rigkit.capture.field import reading_from_device
+    from rigkit.errors import InputError, RigkitError, environment_message
     from rigkit.rangefinder import open_rangefinder
-    from rigkit.rangefinder.framing import escape_bytes
+    from rigkit.rangefinder.protocols import default_protocol
 
     spec = session.rig().rangefinder
     url = args.device
@@ -170,25 +174,24 @@ def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
                              "port, e.g. --device /dev/ttyUSB0")
         url = spec.port
     protocol = args.protocol or (spec.protocol if spec and spec.protocol != "manual"
-                                 else "trupulse")
+                                 else default_protocol(url))
     if args.shots < 1:
         raise InputError(f"--shots {args.shots}: expected at least 1")
-    readings = []
+    readings: list[Any] = []
     baud = spec.baud if spec is not None and url == spec.port else None
-    with open_rangefinder(url, protocol, baud=baud, timeout=args.timeout) as device:
-        for shot in range(args.shots):
-            print(f"waiting for reading {shot + 1}/{args.shots} from {device.name} ...",
-                  flush=True)
-            reading = device.read()
-            readings.append(LaserReading(
-                slope_distance_m=reading.slope_distance_m,
-                time_utc=datetime.fromtimestamp(reading.timestamp, UTC)
-                .strftime("%Y-%m-%dT%H:%M:%SZ"),
-                source=f"{protocol}:{url}",
-                inclination_deg=reading.inclination_deg,
-                raw=escape_bytes(reading.raw),
-            ))
-    return readings
+    try:
+        with open_rangefinder(url, protocol, baud=baud, timeout=args.timeout) as device:
+            for shot in range(args.shots):
+                print(f"waiting for reading {shot + 1}/{args.shots} from {device.name} ...",
+                      flush=True)
+                readings.append(reading_from_device(device.read(), f"{protocol}:{url}"))
+    except (RigkitError, OSError) as exc:
+        if not readings:
+            raise
+        reason = str(exc) if isinstance(exc, RigkitError) else environment_message(exc)
+        return readings, (f"the rangefinder stopped at reading {len(readings) + 1} of "
+                          f"{args.shots} ({reason}); the {len(readings)} received are kept")
+    return readings, None
 
 
 def run_show(args: argparse.Namespace) -> int:

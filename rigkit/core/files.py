@@ -99,6 +99,19 @@ def check_writable_folder(folder: Path, what: str) -> None:
         raise InputError(f"{what}: cannot write in {folder} (permission denied or read-only)")
 
 
+def check_free_space(folder: Path, needed_bytes: int, what: str) -> None:
+    """InputError naming ``what`` when ``folder``'s file system has less than
+    ``needed_bytes`` free, before long work whose output would not fit."""
+    try:
+        stats = os.statvfs(folder)
+    except OSError:
+        return  # cannot tell: the write itself will say
+    free = stats.f_bavail * stats.f_frsize
+    if free < needed_bytes:
+        raise InputError(f"{what}: needs about {needed_bytes / 2**20:,.0f} MB free in {folder},"
+                         f" has {free / 2**20:,.0f} MB (the disk is nearly full)")
+
+
 def temp_file(folder: Path, name: str) -> tuple[int, Path]:
     """A new, empty, hidden file ``.<name>.<random>.tmp`` in ``folder``, opened for
     writing (the descriptor and its path), with the usual permissions (0666 less the

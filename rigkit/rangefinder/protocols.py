@@ -71,3 +71,11 @@ def get_protocol(name: str) -> ProtocolSpec:
     except KeyError:
         choices = ", ".join(sorted(PROTOCOLS))
         raise InputError(f"unknown rangefinder protocol {name!r} (choose {choices})") from None
+
+
+def default_protocol(url: str) -> str:
+    """The protocol to read ``url`` with when none is given: a simulator's own
+    (``sim://vectronix?...`` speaks ``vectronix``), else ``trupulse``."""
+    scheme, _, rest = url.partition("://")
+    device = rest.split("?", 1)[0]
+    return device if scheme == "sim" and device in PROTOCOLS else "trupulse"

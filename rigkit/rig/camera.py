@@ -11,9 +11,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from rigkit.core.yamlfile import KeyPath
 from rigkit.errors import InputError
-from rigkit.geometry import NO_DISTORTION, Distortion
+from rigkit.geometry import NO_DISTORTION, Distortion, distort
 from rigkit.rig.lensfun import LensfunProfile, lensfun_profile
 from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
 
@@ -25,6 +27,9 @@ _MAX_SENSOR_MM = 100.0
 _MAX_FOCAL_MM = 5000.0
 _MAX_EQUIVALENT_MM = 20000.0
 _MAX_RESOLUTION_PX = 100_000
+MAX_CORNER_SHIFT = 0.2
+"""The most a lens's distortion may move the image corner, as a fraction of its distance
+from the centre (fisheye lenses aside, lenses stay well under this)."""
 
 
 
@@ -77,7 +82,7 @@ def read_camera(value: Any, key: KeyPath) -> CameraSpec:
         lens_profile = _lensfun(
             keys["distortion"], key.child("distortion"), resolution, focal, sensor
         )
-    return CameraSpec(
+    spec = CameraSpec(
         model=key.child("model").line(keys["model"]),
         sensor_mm=sensor,
         resolution=resolution,
@@ -90,6 +95,28 @@ def read_camera(value: Any, key: KeyPath) -> CameraSpec:
         else key.optional(keys, "distortion", _distortion) or NO_DISTORTION,
         lens_profile=lens_profile,
     )
+    _check_corner_shift(spec, key.child("distortion"))
+    return spec
+
+
+def _check_corner_shift(spec: CameraSpec, key: KeyPath) -> None:
+    """InputError when the distortion moves the image corner by more than
+    ``MAX_CORNER_SHIFT`` of its distance from the centre: no lens does that (telephoto
+    lenses: a few tenths of a percent to a few percent), so the terms are wrong (a
+    value in other units, a typo such as 1e300)."""
+    if spec.distortion == NO_DISTORTION:
+        return
+    width, height = spec.resolution
+    x = np.array((width - 1) / 2 / spec.focal_px)
+    y = np.array((height - 1) / 2 / spec.focal_px)
+    with np.errstate(all="ignore"):
+        xd, yd = distort(x, y, spec.distortion)
+        shift = float(np.hypot(xd - x, yd - y) / np.hypot(x, y))
+    if not shift <= MAX_CORNER_SHIFT:
+        raise key.error(f"moves the image corner by {100 * shift:.3g} % of its distance from "
+                        f"the centre; a lens moves it by at most {100 * MAX_CORNER_SHIFT:g} % "
+                        "(terms in normalised image coordinates, OpenCV's model)",
+                        list(spec.distortion))
 
 
 def _resolution(value: Any, key: KeyPath) -> tuple[int, int]:

@@ -44,6 +44,7 @@ CAMERA_ROLES = ("left", "right", "back")
 FOCAL_AGREEMENT = 0.001
 """The three cameras' focal lengths may differ by at most this fraction (0.1 %)."""
 _MAX_BASELINE_M = 100.0
+_MIN_BASELINE_M = 0.01
 _MAX_OFFSET_M = 10.0
 _MAX_RANGE_M = 100_000.0
 _MAX_BAUD = 4_000_000
@@ -244,7 +245,8 @@ def _cameras(keys: dict[str, Any], top: KeyPath) -> Mapping[str, CameraSpec]:
 def _baseline(value: Any, key: KeyPath) -> Baseline:
     keys = key.mapping(value, required=("value_m", "tolerance_m"))
     hint = "baselines are in metres; is this in centimetres or millimetres?"
-    length = key.child("value_m").bounded(keys["value_m"], "m", _MAX_BASELINE_M, hint=hint)
+    length = key.child("value_m").bounded(keys["value_m"], "m", _MAX_BASELINE_M,
+                                          low=_MIN_BASELINE_M, hint=hint)
     tolerance_key = key.child("tolerance_m")
     tolerance = tolerance_key.number(keys["tolerance_m"], "m")
     if not 0.0 <= tolerance < length:

@@ -28,7 +28,7 @@ from rigkit.capture.field import (
     onsite_checks,
 )
 from rigkit.core.chatter import private_terminal
-from rigkit.errors import RigkitError
+from rigkit.errors import RigkitError, environment_message
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.messages import (
     CheckPosition,
@@ -192,6 +192,9 @@ class FieldApp(App[None]):
             session = add_position_frame(self.session, position, path)
         except RigkitError as exc:
             self.tell(FrameRefused(position, str(exc)))
+            return
+        except OSError as exc:  # a full card or disk, a read-only session
+            self.tell(FrameRefused(position, environment_message(exc)))
             return
         self.call_from_thread(setattr, self, "session", session)
         self.tell(FrameAdded(position, path.name))

@@ -15,7 +15,7 @@ from textual.worker import get_current_worker
 from rigkit.batch import new_run_id, process_session
 from rigkit.capture import RESULTS_DIR, read_rows
 from rigkit.capture.comparisons import Comparison, latest_run
-from rigkit.errors import RigkitError
+from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.verdict import judge, offset_note
 from rigkit.tui.screens.common import StepScreen, escape, session_of
 from rigkit.tui.widgets import PixelView
@@ -80,6 +80,9 @@ class ProcessScreen(StepScreen):
             return
         except RigkitError as exc:
             self.app.call_from_thread(self._failed, str(exc))
+            return
+        except OSError as exc:  # a full disk, a read-only session
+            self.app.call_from_thread(self._failed, environment_message(exc))
             return
         self.app.call_from_thread(self._show_results, list(outcome.rows))
 

@@ -9,7 +9,8 @@ from textual.binding import Binding
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Static
 
-from rigkit.capture import create_session, is_session, load_session
+from rigkit.capture import is_session, load_session
+from rigkit.capture.actions import create_session_in
 from rigkit.capture.field import frames_at, next_step
 from rigkit.errors import RigkitError
 from rigkit.tui.messages import OpenSession
@@ -77,7 +78,7 @@ class StartScreen(Screen[None]):
                 "[b $error]give a session name and a rig profile (NAME RIG.yaml)[/]")
             return
         try:
-            session = create_session(app.config.capture / parts[0], rig)
+            session = create_session_in(app.config.capture, parts[0], rig)
         except RigkitError as exc:
             self.query_one("#message", Static).update(f"[b $error]{escape(str(exc))}[/]")
             return
