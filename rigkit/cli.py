@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import logging
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
 
 from rigkit import __version__
 from rigkit.errors import RigkitError, environment_message
@@ -42,7 +45,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        code: int = args.func(args)
+        with _quiet_libraries():
+            code: int = args.func(args)
     except RigkitError as exc:
         print(f"rigkit {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -57,6 +61,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
         return 2
     return code
+
+
+@contextlib.contextmanager
+def _quiet_libraries() -> Iterator[None]:
+    """What libraries print on their own is not for the command line's user: Python
+    warnings (numpy's "Mean of empty slice", scipy's fit warnings) are dropped, and
+    matplotlib logs only errors ("building the font cache" on a first run is not one).
+    Decoders' output on descriptor 2 is captured where they run (rigkit.core.chatter)."""
+    logging.getLogger("matplotlib").setLevel(logging.ERROR)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
 
 
 if __name__ == "__main__":

@@ -92,7 +92,6 @@ def run_depth(
     hash; ``force`` runs despite a fatal EXIF finding. RigkitError (one line) for a
     capture that cannot give a trustworthy depth map."""
     report = progress or (lambda stage, fraction: None)
-    report("reading frames", 0.0)
     firsts = {pos: bursts[pos][0].path for pos in POSITIONS if bursts.get(pos)}
     if isinstance(rig, RigProfile):  # EXIF first: a wrong zoom stops before decoding
         warnings = capture_warnings(rig, firsts, force)

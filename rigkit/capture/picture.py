@@ -65,7 +65,8 @@ def picture_problem(grey: np.ndarray) -> str | None:
     structure = _structure(grey)
     if structure < MIN_STRUCTURE:
         return (f"it is noise with no picture in it (8x8 blocks keep {100 * structure:.1f} % "
-                "of its variance, a photograph most of it): the image data is damaged")
+                "of its variance, a photograph most of it): a damaged file, or a frame of fog or "
+                "blank sky")
     return None
 
 

@@ -188,3 +188,39 @@ async def test_start_screen_opens_a_session_or_starts_one(demo: Demo) -> None:
         await pilot.press("down", "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "ridge-9 opened")
         assert app.session is not None and app.session.name == "ridge-9"
+
+
+@synchronous
+async def test_a_new_session_stays_inside_the_capture_folder(demo: Demo) -> None:
+    # Before: ``../../x`` or an absolute path created a session outside it.
+    app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("tab")
+        for name in ("../../escaped", str(demo.root / "abs")):
+            app.screen.query_one("#new").value = f"{name} {demo.rig}"
+            await pilot.press("enter")
+            await wait_for(pilot, lambda: "session name" in text(app, "#message"),
+                           f"the refusal of {name}")
+    assert not (demo.root.parent / "escaped").exists() and not (demo.root / "abs").exists()
+
+
+@synchronous
+async def test_a_frame_declaring_a_huge_size_is_refused_and_the_app_goes_on(demo: Demo) -> None:
+    # Before: a PNG header claiming 60000x60000 made the TUI exit.
+    import struct
+
+    session = create_session(demo.capture / "field-1", demo.rig).path
+    app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
+                               graphics=False, settle_s=SETTLE_S))
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("n")
+        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
+        data = bytearray((demo.scene / "left.png").read_bytes())
+        data[16:24] = struct.pack(">II", 60000, 60000)
+        (demo.card / "DSCN0001.PNG").write_bytes(bytes(data))
+        await wait_for(pilot, lambda: "60000x60000" in text(app, "#checks"), "the refusal")
+        write_frame(demo.card / "DSCN0002.PNG", demo.scene / "left.png", iso=100)
+        await wait_for(pilot, lambda: "DSCN0002" in text(app, "#checks") and "✔" in
+                       text(app, "#checks"), "the good frame after it")
+    assert [Path(f.file).name for f in frames_at(load_session(session), "left")] == \
+        ["DSCN0002.PNG"]
