@@ -399,3 +399,20 @@ def test_depth_with_aperture_offset_puts_the_spot_at_the_measured_range() -> Non
 def test_depth_rejects_an_impossible_range() -> None:
     with pytest.raises(InputError, match="cannot reach"):
         depth_from_range(-1.0, (CX, CY), fx=FX, fy=FY, cx=CX, cy=CY)
+
+
+@pytest.mark.parametrize(
+    "distance",
+    ["1000000000.00", "1e100", "3_0_2.00", "1e300", "inf", "nan", "0x12C"],
+)
+def test_absurd_ranges_are_refused_by_the_parser(distance: str) -> None:
+    # Sentences with valid checksums; before, each was stored and compared at -100 %.
+    frame = trupulse_sentence(["PLTIT", "HV", "", "", "47.30", "D", "1.20", "D", distance, "M"])
+    with pytest.raises(FrameError, match="not a number|beyond the TruPulse's 2000 m"):
+        parse_trupulse(frame, 0.0)
+
+
+def test_a_vectronix_range_beyond_any_module_is_refused() -> None:
+    body = "LM,Md," + vectronix_range_field(30_000.0)
+    with pytest.raises(FrameError, match="beyond the device's 0-25000 m"):
+        parse_vectronix(vectronix_frame(body), 0.0)
