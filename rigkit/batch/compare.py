@@ -24,7 +24,8 @@ def compare_target(
     ``depth``, ``sigma``: (H, W) float32, metres, z in the left camera. The estimate is
     the median z over the target's window, turned into the range along the centre
     pixel's ray from the laser's aperture (rig profile's rangefinder offset) by
-    :func:`rigkit.rangefinder.ranging.range_from_depth`.
+    :func:`rigkit.rangefinder.ranging.range_from_depth`. The laser range is the median
+    of the target's readings, so one typo among good shots does not move it.
     """
     profile = session.rig()
     height, width = depth.shape
@@ -36,7 +37,7 @@ def compare_target(
     window, window_sigma = depth[rows, cols], sigma[rows, cols]
     finite = np.isfinite(window)
     laser = np.array([r.slope_distance_m for r in target.readings], float)
-    laser_range = float(laser.mean()) if laser.size else math.nan
+    laser_range = float(np.median(laser)) if laser.size else math.nan  # robust to a typo
     estimate = sigma_range = math.nan
     if finite.any():
         z = float(np.median(window[finite]))

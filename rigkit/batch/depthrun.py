@@ -43,7 +43,10 @@ RigAtSize = Callable[[tuple[int, int]], RigProfile]
 class DepthRun:
     """What :func:`run_depth` found. ``left``: the left image the depth map lies on,
     (H, W) float32 grey in [0, 255]; ``burst_length``: frames per position (the
-    shortest burst); ``warnings``: one line each, for the user and depth.json."""
+    shortest burst); ``warnings``: one line each, for the user and depth.json;
+    ``shortfalls``: those of them that say the capture misses the goal (the disparity
+    offset alone leaves more than 0.3 % of depth; a burst shorter than the measured
+    shimmer calls for), which keep a verdict from saying "done"."""
 
     result: DepthResult
     left: np.ndarray
@@ -52,6 +55,7 @@ class DepthRun:
     shimmer: tuple[Shimmer, str] | None
     burst_length: int
     warnings: tuple[str, ...]
+    shortfalls: tuple[str, ...] = ()
 
     def metadata(self) -> dict[str, Any]:
         """The run as JSON-ready data (the body of ``depth.json``): frames, rig,
@@ -65,6 +69,7 @@ class DepthRun:
                     "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
                     "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},
             "warnings": list(self.warnings),
+            "shortfalls": list(self.shortfalls),
             "shimmer": {"frames": self.shimmer[1], **self.shimmer[0].as_dict()}
             if self.shimmer else None,
             **self.result.diagnostics(),
@@ -110,9 +115,8 @@ def run_depth(
     length = min(len(bursts[pos]) for pos in POSITIONS)
     found = [result.offset_warning()]
     if loaded.shimmer is not None:
-        measured, where = loaded.shimmer
-        found.append(burst_warning(measured, where, loaded.size, geometry.focal_px,
-                                   geometry.baseline_lr_m, result.median_depth_m, length))
+        found.append(burst_warning(profile, *loaded.shimmer, result.median_depth_m, length))
+    shortfalls = tuple(filter(None, found))
     return DepthRun(
         result=result,
         left=loaded.images[0],
@@ -120,5 +124,6 @@ def run_depth(
         bursts={pos: tuple(bursts[pos]) for pos in POSITIONS},
         shimmer=loaded.shimmer,
         burst_length=length,
-        warnings=(*warnings, *filter(None, found)),
+        warnings=(*warnings, *shortfalls),
+        shortfalls=shortfalls,
     )

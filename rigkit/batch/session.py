@@ -31,11 +31,13 @@ from rigkit.capture.session import (
     Session,
     load_session,
     log_event,
+    stray_readings,
     utc_now,
 )
 from rigkit.core.files import Content, check_free_space, replace_folder
 from rigkit.errors import InputError
 from rigkit.reporting.previews import preview_set
+from rigkit.reporting.verdict import Verdict, judge
 
 StageReport = Callable[[str, float], None]
 RESULT_BYTES_PER_PIXEL = 12
@@ -52,7 +54,9 @@ def new_run_id() -> str:
 class Outcome:
     """What happened to one session: ``ok`` with its comparisons, or the reason it failed.
 
-    ``warnings`` are one-line findings that did not stop processing (EXIF differences).
+    ``warnings`` are one-line findings that did not stop processing (EXIF differences,
+    the offset's share of depth); ``verdict`` what the laser targets say of the run
+    (:func:`rigkit.reporting.verdict.judge`; None for a failed session).
     """
 
     path: Path
@@ -61,6 +65,7 @@ class Outcome:
     seconds: float
     rows: tuple[Comparison, ...] = ()
     warnings: tuple[str, ...] = field(default=())
+    verdict: Verdict | None = None
 
 
 # -- one session ----------------------------------------------------------------------------
@@ -125,7 +130,20 @@ def _process_locked(
     log_event(session.path, "process", f"run {run_id}: ok, {len(rows)} targets, {seconds:.1f} s")
     report("done", 1.0)
     density = float(np.isfinite(result.depth).mean())
+    verdict = judge(rows, run.profile, frames=run.burst_length, shortfalls=run.shortfalls)
     return Outcome(
         session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
-        seconds, rows, run.warnings,
+        seconds, rows, (*run.warnings, *_stray_warnings(session)), verdict,
     )
+
+
+def _stray_warnings(session: Session) -> list[str]:
+    """One line per reading far from its target's others (:func:`stray_readings`)."""
+    lines = []
+    for target in session.targets:
+        for index in stray_readings(target):
+            value = target.readings[index].slope_distance_m
+            lines.append(f"{target.name}: reading {index + 1} ({value:.2f} m) is far from the "
+                         f"others; the median is used (a typo? `rigkit session remove-reading "
+                         f"{session.path} --target {target.name} --reading {index + 1}`)")
+    return lines

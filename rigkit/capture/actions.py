@@ -363,6 +363,57 @@ def _add_target(session: Session, name: str, pixel: tuple[float, float], window_
     return updated
 
 
+def remove_reading(session: Session, target_name: str, number: int) -> Session:
+    """Remove reading ``number`` (1-based, as ``session show`` lists them) of the target
+    ``target_name``; returns the session as saved."""
+    with changing(session.path, "remove") as current:
+        target = current.target(target_name)
+        if not 1 <= number <= len(target.readings):
+            raise InputError(f"{current.path}: target {target_name!r} has "
+                             f"{len(target.readings)} reading(s); there is no reading {number}")
+        gone = target.readings[number - 1]
+        kept = target.readings[: number - 1] + target.readings[number:]
+        updated = _with_target(current, replace(target, readings=kept))
+        save_session(updated)
+        log_event(current.path, "remove", f"{target_name} reading {number}: "
+                  f"{gone.slope_distance_m:.2f} m ({gone.source}, {gone.time_utc})")
+    return updated
+
+
+def remove_target(session: Session, target_name: str) -> Session:
+    """Remove the target ``target_name`` with its readings; returns the session."""
+    with changing(session.path, "remove") as current:
+        target = current.target(target_name)
+        updated = replace(current, targets=tuple(t for t in current.targets if t is not target))
+        save_session(updated)
+        log_event(current.path, "remove", f"target {target_name} at ({target.pixel[0]:g}, "
+                  f"{target.pixel[1]:g}) with {len(target.readings)} reading(s)")
+    return updated
+
+
+def remove_frame(session: Session, position: str, number: int | None = None) -> Session:
+    """Remove frame ``number`` (1-based; default the newest) of ``position``'s burst from
+    the session; its file stays in ``raw/``. Returns the session."""
+    with changing(session.path, "remove") as current:
+        burst = current.bursts.get(position, ())
+        number = len(burst) if number is None else number
+        if not 1 <= number <= len(burst):
+            raise InputError(f"{current.path}: the {position} position has {len(burst)} "
+                             f"frame(s); there is no frame {number}")
+        gone = burst[number - 1]
+        bursts = {**current.bursts, position: burst[: number - 1] + burst[number:]}
+        updated = replace(current, bursts={p: b for p, b in bursts.items() if b})
+        save_session(updated)
+        log_event(current.path, "remove", f"{position} frame {number}: {gone.file} (kept in "
+                  f"{RAW_DIR}/)")
+    return updated
+
+
+def _with_target(session: Session, target: Target) -> Session:
+    return replace(session, targets=tuple(target if t.name == target.name else t
+                                          for t in session.targets))
+
+
 def check_target_inside(session: Session, target: Target) -> None:
     """InputError if the target's pixel is outside the left frame, or its window larger
     than the frame (the rig's image size)."""

@@ -37,7 +37,7 @@ class Comparison:
     Units: metres, pixels, percent; ``NaN`` where a value does not exist (e.g. no
     estimate). ``u``, ``v``: target centre in the original left image, px (x right, y
     down). ``window_px``: side of the square window the estimate is taken over.
-    ``laser_range_m``: mean of the target's readings (slope distance from the laser's
+    ``laser_range_m``: median of the target's readings (slope distance from the laser's
     aperture); ``laser_spread_m``: their standard deviation (0 for one reading).
     ``estimate_range_m``: median depth in the window converted to range along the line of
     sight from the laser aperture; ``estimate_sigma_m``: its one-sigma uncertainty (the

@@ -52,7 +52,6 @@ from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.rangefinder.framing import Reading, escape_bytes
 from rigkit.rig.bursts import burst_advice
 from rigkit.rig.findings import Finding
-from rigkit.rig.formulas import disparity_px
 from rigkit.rig.profile import RigProfile
 
 CHECK_SIDE_PX = 1024
@@ -310,9 +309,7 @@ def shimmer_check(session: Session, position: str) -> Finding | None:
         return Finding("shimmer", f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where}); a "
                        "nominal range in the rig profile would give the burst length to "
                        "take", ok=True)
-    disparity = disparity_px(z, profile.focal_px, profile.baseline_lr.value_m)
-    advice = burst_advice(shimmer, where, profile.image_size, disparity, z)[0]
-    return Finding("shimmer", advice, ok=True)
+    return Finding("shimmer", burst_advice(profile, shimmer, where, z)[0], ok=True)
 
 
 def onsite_checks(session: Session, position: str) -> list[Finding]:

@@ -24,6 +24,7 @@ from __future__ import annotations
 import fcntl
 import os
 import re
+import statistics
 import time
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -108,6 +109,26 @@ class Target:
     window_px: int
     readings: tuple[LaserReading, ...] = ()
     note: str = ""
+
+
+STRAY_M = 1.0
+STRAY_FRACTION = 0.005
+"""A reading further than max(STRAY_M, STRAY_FRACTION x range) from the median of its
+target's readings is flagged as a stray (a typo, a shot that hit something nearer)."""
+
+
+def stray_readings(target: Target) -> tuple[int, ...]:
+    """Indices (0-based) of ``target``'s readings far from the others: over ``STRAY_M``
+    or ``STRAY_FRACTION`` of the range from their median. With two readings that far
+    apart both are flagged: which one is wrong cannot be told."""
+    values = [r.slope_distance_m for r in target.readings]
+    if len(values) < 2:
+        return ()
+    middle = statistics.median(values)
+    limit = max(STRAY_M, STRAY_FRACTION * middle)
+    if len(values) == 2:
+        return (0, 1) if abs(values[0] - values[1]) > 2 * limit else ()
+    return tuple(i for i, value in enumerate(values) if abs(value - middle) > limit)
 
 
 @dataclass(frozen=True)

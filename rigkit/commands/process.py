@@ -88,10 +88,13 @@ def _outcome_lines(outcome: Any) -> list[str]:
     else:
         lines = [f"FAILED {_reason(outcome)}"]
     lines += [f"       warning: {warning}" for warning in outcome.warnings]
+    if outcome.verdict is None:
+        return lines
     lines += [
         f"       {row.target:<8} laser {row.laser_range_m:8.2f} m  estimate "
         f"{row.estimate_range_m:8.2f} m  {row.error_pct:+6.2f} %  "
-        f"(+- {row.estimate_sigma_m:.2f} m) {row.status}"
-        for row in outcome.rows
+        f"(+- {row.estimate_sigma_m:.2f} m)  {target.label}"
+        for row, target in zip(outcome.rows, outcome.verdict.targets, strict=True)
     ]
+    lines.append(f"       verdict: {outcome.verdict.headline}")
     return lines

@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from rigkit.commands import count
+
 EXAMPLE = """examples:
   rigkit session new capture/ridge-0412 --rig rigs/p1000-tripod.yaml --operator "A. Field"
   rigkit session add-frame capture/ridge-0412 --position left  DSCN0101.NRW
@@ -15,6 +17,7 @@ EXAMPLE = """examples:
   rigkit session add-target capture/ridge-0412 --name mast --pixel 2210 1408 --range-m 312.4
   rigkit session add-target capture/ridge-0412 --name barn --pixel 900 2100 --device
   rigkit session show capture/ridge-0412
+  rigkit session remove-reading capture/ridge-0412 --target mast --reading 2   # a typo
 
 Frames are copied byte for byte into SESSION/raw/ and hashed; rigkit never changes or
 deletes anything there. Layout and file formats: docs/sessions.md.
@@ -74,6 +77,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     target.add_argument("--inclination", type=float, help="inclination of typed ranges, deg")
     target.add_argument("--note", default="", help="what the target is")
     target.set_defaults(func=run_add_target)
+
+    remove = actions.add_parser("remove-reading", help="take back one laser reading")
+    remove.add_argument("session", type=Path)
+    remove.add_argument("--target", required=True, help="the target's name")
+    remove.add_argument("--reading", type=count, required=True,
+                        help="which reading, 1 for the first (as `session show` lists them)")
+    remove.set_defaults(func=run_remove_reading)
+
+    drop = actions.add_parser("remove-target", help="take back a target with its readings")
+    drop.add_argument("session", type=Path)
+    drop.add_argument("--target", required=True, help="the target's name")
+    drop.set_defaults(func=run_remove_target)
+
+    unframe = actions.add_parser("remove-frame",
+                                 help="take a frame out of the session (its file stays in raw/)")
+    unframe.add_argument("session", type=Path)
+    unframe.add_argument("--position", required=True, choices=("left", "right", "back"))
+    unframe.add_argument("--frame", type=count,
+                         help="which frame of the burst, 1 for the first (default: the newest)")
+    unframe.set_defaults(func=run_remove_frame)
 
     show = actions.add_parser("show", help="print a session: frames, targets, last results")
     show.add_argument("session", type=Path)
@@ -194,6 +217,35 @@ def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any],
     return readings, None
 
 
+def run_remove_reading(args: argparse.Namespace) -> int:
+    from rigkit.capture import load_session
+    from rigkit.capture.actions import remove_reading
+
+    session = remove_reading(load_session(args.session), args.target, args.reading)
+    left = ", ".join(f"{r.slope_distance_m:.2f}" for r in session.target(args.target).readings)
+    print(f"removed reading {args.reading} of {args.target}; left: [{left or 'none'}] m")
+    return 0
+
+
+def run_remove_target(args: argparse.Namespace) -> int:
+    from rigkit.capture import load_session
+    from rigkit.capture.actions import remove_target
+
+    remove_target(load_session(args.session), args.target)
+    print(f"removed target {args.target}")
+    return 0
+
+
+def run_remove_frame(args: argparse.Namespace) -> int:
+    from rigkit.capture import load_session
+    from rigkit.capture.actions import remove_frame
+
+    session = remove_frame(load_session(args.session), args.position, args.frame)
+    left = len(session.bursts.get(args.position, ()))
+    print(f"removed a {args.position} frame ({left} left; its file stays in raw/)")
+    return 0
+
+
 def run_show(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
     from rigkit.capture.actions import changing
@@ -238,7 +290,7 @@ def _last_rows(session: Any) -> list[Any]:
 def _show_text(session: Any) -> str:
     from rigkit.capture import POSITIONS, frame_problems
     from rigkit.capture.actions import stale_results
-    from rigkit.capture.session import lock_holder
+    from rigkit.capture.session import lock_holder, stray_readings
 
     lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
     if session.operator:
@@ -261,18 +313,23 @@ def _show_text(session: Any) -> str:
                          f"sha256 {frame.sha256[:12]}  {shot}".rstrip())
     lines.append(f"targets ({len(session.targets)})")
     for target in session.targets:
-        ranges = ", ".join(f"{r.slope_distance_m:.2f}" for r in target.readings) or "none"
+        strays = stray_readings(target)
+        ranges = ", ".join(f"{i + 1}: {r.slope_distance_m:.2f}" + (" (stray)" if i in strays
+                                                                    else "")
+                           for i, r in enumerate(target.readings)) or "none"
         lines.append(f"  {target.name:<8} pixel ({target.pixel[0]:g}, {target.pixel[1]:g}) "
                      f"window {target.window_px}  laser [{ranges}] m  {target.note}".rstrip())
     problems = frame_problems(session)
     lines.append("status   " + ("ready to process" if not problems else "; ".join(problems)))
     for note in filter(None, (lock_holder(session.path), stale_results(session))):
         lines.append(f"         {note}")
+    from rigkit.reporting.verdict import row_label
+
     rows = _last_rows(session)
     if rows:
         lines.append(f"last run {rows[0].run_id}")
         for row in rows:
             lines.append(f"  {row.target:<8} laser {row.laser_range_m:9.2f} m  estimate "
                          f"{row.estimate_range_m:9.2f} m  error {row.error_pct:+6.2f} %  "
-                         f"{row.status}")
+                         f"{row_label(row)}")
     return "\n".join(lines)

@@ -213,9 +213,9 @@ def _offset_basis(model: ErrorModel) -> str:
     if model.frames is None or model.shimmer_px is None:
         return "as given (--offset-error-px)."
     frames = f"{model.frames} frame{'s' if model.frames > 1 else ''}"
-    corr = "" if model.shimmer_corr_px is None else f" over {model.shimmer_corr_px:g} px"
+    corr = "" if model.shimmer_corr_px is None else f" over {model.shimmer_corr_px:.3g} px"
     return (
-        f"{frames} per position under {model.shimmer_px:g} px RMS of heat shimmer{corr}\n"
+        f"{frames} per position under {model.shimmer_px:.2g} px RMS of heat shimmer{corr}\n"
         "  (--frames, --shimmer-px, --shimmer-corr-px); N frames divide its share by "
         "about sqrt(N)."
     )

@@ -30,6 +30,7 @@ from rigkit.capture.comparisons import (
 from rigkit.core.files import write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
+from rigkit.reporting.verdict import row_label
 
 #: Bucket edges by laser range, metres: <100, 100-200, ..., 400-500, >=500.
 DEFAULT_EDGES_M: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -209,7 +210,7 @@ def format_rows(rows: Sequence[Comparison]) -> str:
     header += ["laser m", "estimate m", "error m", "error %", "sigma m", "status"]
     lines = []
     for r in rows:
-        status = r.status + (f" (>{LOOSE_PCT:g} %)" if is_outlier(r) else "")
+        status = row_label(r, TIGHT_PCT)
         lines.append(
             [
                 r.session,

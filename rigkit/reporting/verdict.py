@@ -1,9 +1,13 @@
 """The field verdict on one processed session: do the laser targets agree with the depth?
 
-A target passes when its estimate is within a tolerance of the laser range: ``limit_pct``
-(1 % by default), or twice the rig's expected depth error at that range (the error
-budget of :mod:`rigkit.rig.budget`) when that is larger, since a rig cannot do better
-than its budget. The verdict says what to capture again when a target fails.
+The goal is an agreement within ``goal_pct`` (1 % of the range). Each target says where
+it stands in the same words everywhere (``rigkit process``, ``rigkit report``, ``session
+show``, the field TUI): "within 1 %", or by how much it is outside and whether that is
+still inside the rig's own 2-sigma at that range (the error budget of
+:mod:`rigkit.rig.budget`, evaluated at the *estimate*, so a wild laser reading cannot
+widen its own tolerance): "1.43 %: outside 1 %, inside the 2σ of ±1.6 %". The session is
+done only when every target is within the goal and nothing the run found (the offset's
+share of depth, a burst too short for the air) says the capture misses it.
 """
 
 from __future__ import annotations
@@ -16,30 +20,32 @@ from pathlib import Path
 
 from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
-from rigkit.pipeline.estimate import offset_warning
 from rigkit.rig.budget import ErrorModel, budget_row
 from rigkit.rig.profile import RigProfile
 
-LIMIT_PCT = 1.0
-"""Default agreement wanted between the depth estimate and the laser, % of the range."""
+GOAL_PCT = 1.0
+"""The agreement wanted between the depth estimate and the laser, % of the range."""
 BUDGET_SIGMAS = 2.0
-"""The tolerance never goes below this many of the rig's expected one-sigma errors."""
+"""How many of the rig's expected one-sigma errors a target's 2σ note spans."""
 
 
 @dataclass(frozen=True)
 class TargetVerdict:
-    """One target: ``ok``, its tolerance in % of the laser range, and a note when not ok."""
+    """One target: ``ok`` (within the goal), the goal and the rig's 2σ at the estimate
+    (% of the range), and ``label``, the words every front end shows for it."""
 
     target: str
     ok: bool
-    tolerance_pct: float
-    note: str = ""
+    goal_pct: float
+    two_sigma_pct: float
+    label: str
 
 
 @dataclass(frozen=True)
 class Verdict:
-    """The session's verdict: ``ok`` when every target passes; ``headline`` is one line
-    ("6/6 targets within 1 %: done"), ``advice`` what to capture again (may be empty)."""
+    """The session's verdict: ``ok`` when every target is within the goal and no
+    shortfall is reported; ``headline`` is one line ("6/6 targets within 1 %: done"),
+    ``advice`` what to capture again (may be empty)."""
 
     ok: bool
     headline: str
@@ -47,58 +53,66 @@ class Verdict:
     advice: tuple[str, ...]
 
 
-def tolerance_pct(
-    profile: RigProfile, range_m: float, limit_pct: float = LIMIT_PCT, frames: int = 1
-) -> float:
-    """The tolerance at ``range_m`` metres: ``limit_pct`` or the rig's 2-sigma, in %,
+def row_label(row: Comparison, goal_pct: float = GOAL_PCT) -> str:
+    """What a comparison says on its own: "within 1 %", "1.43 %: outside 1 %", "no
+    estimate" or "no reading" (the words of :func:`judge_target`, without the rig)."""
+    if row.status == STATUS_NO_READING:
+        return "no reading"
+    if row.status == STATUS_NO_ESTIMATE or not math.isfinite(row.error_pct):
+        return "no estimate"
+    if abs(row.error_pct) <= goal_pct:
+        return f"within {goal_pct:g} %"
+    return f"{abs(row.error_pct):.2f} %: outside {goal_pct:g} %"
+
+
+def two_sigma_pct(profile: RigProfile, range_m: float, frames: int = 1) -> float:
+    """The rig's 2σ depth error at ``range_m`` metres, % (NaN where there is no range),
     for ``frames`` per position (the offset's share of the budget shrinks with them)."""
     if not math.isfinite(range_m) or range_m <= 0:
-        return limit_pct
+        return math.nan
     model = ErrorModel.from_profile(profile, frames=frames)
-    expected = budget_row(model, range_m).total_fraction
-    return max(limit_pct, 100.0 * BUDGET_SIGMAS * expected)
+    return 100.0 * BUDGET_SIGMAS * budget_row(model, range_m).total_fraction
 
 
-def judge_target(row: Comparison, profile: RigProfile, limit_pct: float = LIMIT_PCT,
+def judge_target(row: Comparison, profile: RigProfile, goal_pct: float = GOAL_PCT,
                  frames: int = 1) -> TargetVerdict:
-    """One comparison row against its tolerance (``frames`` per position)."""
-    tolerance = tolerance_pct(profile, row.laser_range_m, limit_pct, frames)
-    if row.status == STATUS_NO_READING:
-        return TargetVerdict(row.target, False, tolerance, "no laser reading")
-    if row.status == STATUS_NO_ESTIMATE:
-        return TargetVerdict(row.target, False, tolerance, "no depth estimate at the target")
-    if abs(row.error_pct) <= tolerance:
-        return TargetVerdict(row.target, True, tolerance)
-    return TargetVerdict(row.target, False, tolerance, f"off by {row.error_pct:+.1f} %")
+    """One comparison row against the goal, with the rig's 2σ at the estimate."""
+    sigma2 = two_sigma_pct(profile, row.estimate_range_m, frames)
+    label = row_label(row, goal_pct)
+    ok = label.startswith("within")
+    if not ok and math.isfinite(row.error_pct) and math.isfinite(sigma2):
+        inside = "inside" if abs(row.error_pct) <= sigma2 else "outside"
+        label += f", {inside} the 2σ of ±{sigma2:.1f} %"
+    return TargetVerdict(row.target, ok, goal_pct, sigma2, label)
 
 
-def judge(rows: Sequence[Comparison], profile: RigProfile, limit_pct: float = LIMIT_PCT,
-          frames: int = 1) -> Verdict:
+def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOAL_PCT,
+          frames: int = 1, shortfalls: Sequence[str] = ()) -> Verdict:
     """The verdict on one run's comparison rows (one per target), captured with
-    ``frames`` per position."""
+    ``frames`` per position; ``shortfalls``: what the run said makes it miss the goal
+    (:attr:`rigkit.batch.depthrun.DepthRun.shortfalls`)."""
     if not rows:
         return Verdict(False, "no laser targets: nothing to check the depth against", (),
                        ("mark at least one target and fire the laser at it",))
-    targets = tuple(judge_target(row, profile, limit_pct, frames) for row in rows)
+    targets = tuple(judge_target(row, profile, goal_pct, frames) for row in rows)
     passed = sum(t.ok for t in targets)
-    widest = max(t.tolerance_pct for t in targets)
-    within = f"{limit_pct:g} %" if widest <= limit_pct else f"tolerance (up to {widest:.1f} %)"
-    verdict = "done" if passed == len(targets) else "capture again"
-    headline = f"{passed}/{len(targets)} targets within {within}: {verdict}"
-    return Verdict(passed == len(targets), headline, targets, _advice(rows, targets))
+    done = passed == len(targets) and not shortfalls
+    verdict = "done" if done else "capture again"
+    if passed == len(targets) and shortfalls:
+        verdict = "capture again: the run says it misses the goal (below)"
+    headline = f"{passed}/{len(targets)} targets within {goal_pct:g} %: {verdict}"
+    return Verdict(done, headline, targets, _advice(rows, targets))
 
 
 def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tuple[str, ...]:
-    failed = [t for t in targets if not t.ok]
-    advice = [f"{t.target}: {t.note}" for t in failed]
-    if any("reading" in t.note for t in failed):
+    failed = [(r, t) for r, t in zip(rows, targets, strict=True) if not t.ok]
+    advice = [f"{t.target}: {t.label}" for _, t in failed]
+    if any(r.status == STATUS_NO_READING for r, _ in failed):
         advice.append("fire the laser at the targets without a reading")
-    if any("estimate" in t.note for t in failed):
+    if any(r.status == STATUS_NO_ESTIMATE for r, _ in failed):
         advice.append("move those targets onto textured ground seen from the right position")
-    signs = {math.copysign(1.0, r.error_pct) for r, t in zip(rows, targets, strict=True)
-             if not t.ok and r.status == "ok"}
-    off = sum(1 for t in failed if t.note.startswith("off"))
-    if off >= 2 and len(signs) == 1:
+    off = [r for r, _ in failed if math.isfinite(r.error_pct)]
+    if len(off) >= 2 and len({math.copysign(1.0, r.error_pct) for r in off}) == 1:
         advice.append("several targets are off the same way: measure C_lr and C_lb again, "
                       "check the zoom, and take the three frames again")
     elif off:
@@ -106,13 +120,12 @@ def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tup
     return tuple(advice)
 
 
-def offset_note(session_path: Path) -> str | None:
-    """The warning the session's latest run gave where its disparity offset alone
-    leaves more than 0.3 % of depth uncertain (:func:`~rigkit.pipeline.estimate.offset_warning`);
-    None without one, or without a readable run."""
+def run_shortfalls(session_path: Path) -> tuple[str, ...]:
+    """What the session's latest run said makes it miss the goal (``shortfalls`` in
+    ``results/depth.json``); none without a readable run."""
     try:
         meta = json.loads((session_path / RESULTS_DIR / "depth.json").read_text("utf-8"))
     except (OSError, ValueError):
-        return None
-    fraction = meta.get("offset_depth_error_fraction") if isinstance(meta, dict) else None
-    return offset_warning(fraction) if isinstance(fraction, int | float) else None
+        return ()
+    found = meta.get("shortfalls") if isinstance(meta, dict) else None
+    return tuple(str(s) for s in found) if isinstance(found, list) else ()

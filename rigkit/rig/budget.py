@@ -35,7 +35,7 @@ from rigkit.geometry import distort
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.rig.bursts import (
     OFFSET_FLOOR_PX,
-    SHIMMER_PX,
+    default_shimmer,
     expected_offset_error_px,
     reference_scale,
 )
@@ -101,8 +101,7 @@ class ErrorModel:
     frames: int | None = None
     shimmer_px: float | None = None
     shimmer_corr_px: float | None = None
-    """What ``offset_error_px`` was derived from (None: it was given; a None correlation
-    length: the 1 % of the width it was measured at)."""
+    """What ``offset_error_px`` was derived from (None: it was given)."""
 
     @classmethod
     def from_profile(
@@ -111,14 +110,19 @@ class ErrorModel:
         disparity_error_px: float = DISPARITY_ERROR_PX,
         offset_error_px: float | None = None,
         frames: int = 1,
-        shimmer_px: float = SHIMMER_PX,
+        shimmer_px: float | None = None,
         shimmer_corr_px: float | None = None,
     ) -> ErrorModel:
         """The model for a profile (its focal length, tolerances, baselines and lens).
         The offset's error is ``offset_error_px`` where given, else what ``frames`` per
         position under ``shimmer_px`` of shimmer correlated over ``shimmer_corr_px``
-        leave (:func:`rigkit.rig.bursts.expected_offset_error_px`)."""
+        leave (:func:`rigkit.rig.bursts.expected_offset_error_px`); either shimmer figure
+        left out is moderate air's at the profile's focal length
+        (:func:`rigkit.rig.bursts.default_shimmer`)."""
         derived = offset_error_px is None
+        moderate = default_shimmer(profile.focal_px)
+        shimmer_px = moderate[0] if shimmer_px is None else shimmer_px
+        shimmer_corr_px = moderate[1] if shimmer_corr_px is None else shimmer_corr_px
         if offset_error_px is None:
             offset_error_px = expected_offset_error_px(
                 profile.image_size, frames, shimmer_px, shimmer_corr_px

@@ -15,6 +15,7 @@ from rigkit.errors import InputError
 from rigkit.pipeline.estimate import OFFSET_WARNING_FRACTION
 from rigkit.pipeline.shimmer import Shimmer
 from rigkit.rig.formulas import disparity_px
+from rigkit.rig.profile import RigProfile
 
 REFERENCE_SIZE = (4608, 3456)
 """The image size at which the measured figures below hold (scaled by the diagonal)."""
@@ -36,10 +37,24 @@ SHIMMER_CORR = 0.01
 """Correlation length of the shimmer ``OFFSET_PER_SHIMMER_PX`` was measured under, as a
 fraction of the image width (46 px at 4608; the Gaussian sigma of
 :mod:`rigkit.pipeline.shimmer`)."""
+REFERENCE_FOCAL_PX = 43962.93892852579
+"""The focal length the figures above were measured at, px: 6 deg across 4608 px."""
+SHIMMER_RAD = SHIMMER_PX / REFERENCE_FOCAL_PX
+SHIMMER_CORR_RAD = SHIMMER_CORR * REFERENCE_SIZE[0] / REFERENCE_FOCAL_PX
+"""``SHIMMER_PX`` and its correlation length as the angles they are (6.8 µrad RMS over
+patches of 1.05 mrad): the air does not know the camera's pixels."""
 MAX_FRAMES = 64
 """The longest burst per position :func:`frames_for_offset` proposes."""
 NINE_IN_TEN = 1.645
 """A normal error stays within this many standard deviations nine times in ten."""
+
+
+def default_shimmer(focal_px: float) -> tuple[float, float]:
+    """(RMS per axis, correlation length), px, of moderate heat shimmer over 300 m seen
+    at a focal length of ``focal_px``: ``SHIMMER_RAD`` and ``SHIMMER_CORR_RAD`` in that
+    camera's pixels (0.3 px over 46 px at the synthetic protocol's 43,963 px; 0.36 px
+    for the P1000 at 400 mm-eq.; 0.1 px for a 1536 px frame of the same 6 deg view)."""
+    return SHIMMER_RAD * focal_px, SHIMMER_CORR_RAD * focal_px
 
 
 def expected_offset_error_px(
@@ -86,16 +101,17 @@ def frames_for_offset(
     return None
 
 
-def burst_advice(
-    shimmer: Shimmer, where: str, image_size: tuple[int, int], disparity_px: float,
-    range_m: float,
-) -> tuple[str, int | None]:
+def burst_advice(profile: RigProfile, shimmer: Shimmer, where: str, range_m: float
+                 ) -> tuple[str, int | None]:
     """One line on the ``shimmer`` measured from ``where`` (e.g. "left frames 1 and 2")
-    and the burst it calls for at ``range_m`` (disparity ``disparity_px`` there, images
-    of ``image_size``): (the line, :func:`frames_for_offset`'s answer)."""
+    and the burst it calls for at ``range_m`` with the rig of ``profile`` (its focal
+    length, C_lr and image size): (the line, :func:`frames_for_offset`'s answer). The
+    one computation of the burst to take, on site (at the planned range) and after
+    processing (at the measured median depth)."""
     text = f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where})"
     corr = shimmer.corr_px if math.isfinite(shimmer.corr_px) else None
-    need = frames_for_offset(image_size, disparity_px, shimmer.rms_px, corr)
+    disparity = disparity_px(range_m, profile.focal_px, profile.baseline_lr.value_m)
+    need = frames_for_offset(profile.image_size, disparity, shimmer.rms_px, corr)
     bar = f"{100 * OFFSET_WARNING_FRACTION:g} % of depth"
     if need is None:
         return f"{text}; at {range_m:.0f} m no burst keeps the offset within {bar}", None
@@ -103,17 +119,14 @@ def burst_advice(
             f"{range_m:.0f} m (9 times in 10)"), need
 
 
-def burst_warning(
-    shimmer: Shimmer, where: str, image_size: tuple[int, int], focal_px: float,
-    baseline_lr_m: float, depth_m: float, frames: int,
-) -> str | None:
+def burst_warning(profile: RigProfile, shimmer: Shimmer, where: str, depth_m: float,
+                  frames: int) -> str | None:
     """For a processed capture of ``frames`` per position whose median depth is
     ``depth_m``: the :func:`burst_advice` line where its burst is shorter than the
     measured ``shimmer`` calls for, else None (also where there is no depth)."""
     if not depth_m > 0:
         return None
-    disparity = disparity_px(depth_m, focal_px, baseline_lr_m)
-    text, need = burst_advice(shimmer, where, image_size, disparity, depth_m)
+    text, need = burst_advice(profile, shimmer, where, depth_m)
     if need is not None and need <= frames:
         return None
     return f"{text}; this capture has {frames}"

@@ -21,7 +21,6 @@ from rigkit.rig.budget import (
     corner_distortion,
     range_reaching,
 )
-from rigkit.rig.bursts import SHIMMER_PX
 from rigkit.rig.findings import Finding
 from rigkit.rig.formulas import (
     affine_residual_px,
@@ -180,7 +179,7 @@ def check_rig(
     offset_error_px: float | None = None,
     capture_findings: Sequence[Finding] = (),
     frames: int = 1,
-    shimmer_px: float = SHIMMER_PX,
+    shimmer_px: float | None = None,
     shimmer_corr_px: float | None = None,
 ) -> RigCheck:
     """Run the geometry check and the error budget; ``capture_findings`` (from

@@ -183,7 +183,7 @@ def test_cli_session_workflow(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert "outside the 64x48 left image" in capsys.readouterr().err
     assert main(["session", "show", s]) == 0
     shown = capsys.readouterr().out
-    assert "T1" in shown and "300.50, 300.70" in shown and "ready to process" in shown
+    assert "T1" in shown and "1: 300.50, 2: 300.70" in shown and "ready to process" in shown
     assert main(["session", "show", s, "--json"]) == 0
 
 

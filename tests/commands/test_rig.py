@@ -31,14 +31,17 @@ def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
 @pytest.mark.parametrize(
     ("args", "offset_px", "reach"),
     [
-        # One frame under 0.3 px of shimmer: hypot(0.37, 2.8 x 0.3) = 0.92 px.
-        ([], 0.918, "2,444 m"),
-        # Five frames: the shimmer's share over sqrt(5), hypot(0.37, 0.84 / sqrt(5)).
-        (["--frames", "5"], 0.527, "3,441 m"),
+        # Moderate air at the P1000's 53,251 px: 6.8 urad = 0.363 px RMS over 1.05 mrad
+        # = 55.8 px, 1.21 times the 1 % of the width the figures were measured at; one
+        # frame: hypot(0.37, 2.8 x 0.363 x 1.21) = 1.29 px.
+        ([], 1.287, "1,867 m"),
+        # Five frames: the shimmer's share over sqrt(5), hypot(0.37, 1.232 / sqrt(5)).
+        (["--frames", "5"], 0.664, "3,038 m"),
         # No shimmer: what the principal points leave.
         (["--shimmer-px", "0"], 0.37, "3,961 m"),
-        # Shimmer correlated over 2 % of the width: its share doubles, hypot(0.37, 1.68).
-        (["--shimmer-corr-px", "92.16"], 1.720, None),
+        # Shimmer correlated over 2 % of the width: its share is twice the measured,
+        # hypot(0.37, 2.8 x 0.363 x 2).
+        (["--shimmer-corr-px", "92.16"], 2.068, "1,220 m"),
     ],
 )
 def test_cli_offset_from_frames_and_shimmer(
@@ -59,7 +62,7 @@ def test_cli_reports_the_correlation_length_it_budgeted_for(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     assert main(["rig", "check", str(P1000), "--shimmer-corr-px", "51"]) == 0
-    assert "0.3 px RMS of heat shimmer over 51 px" in capsys.readouterr().out
+    assert "0.36 px RMS of heat shimmer over 51 px" in capsys.readouterr().out
     with pytest.raises(SystemExit) as exc:
         main(["rig", "check", str(P1000), "--shimmer-corr-px", "0"])
     assert exc.value.code == 2

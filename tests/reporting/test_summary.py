@@ -111,8 +111,8 @@ def test_text_report_lists_rows_summary_and_buckets(two_runs: Path) -> None:
     text = format_text(rows, summarize(rows))
     lines = text.splitlines()
     assert any(line.split()[:2] == ["field-1", "T2"] and "-2.000" in line for line in lines)
-    assert any("mast" in line and "ok (>3 %)" in line for line in lines)
-    assert any("T4" in line and STATUS_NO_ESTIMATE in line for line in lines)
+    assert any("mast" in line and "5.00 %: outside 1 %" in line for line in lines)
+    assert any("T4" in line and "no estimate" in line for line in lines)
     assert "5 comparisons: 4 ok, 1 failed (no_estimate 1)" in text
     assert "400-500" in text and "300-400" in text and "<100" not in text  # empty: left out
     assert "run" not in lines[3].split()  # one run per session: no run column

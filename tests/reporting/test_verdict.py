@@ -1,14 +1,16 @@
-"""The field verdict from known comparison rows."""
+"""The field verdict from known comparison rows: one goal, the rig's 2σ at the estimate,
+the same words everywhere."""
 
 from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING
-from rigkit.reporting.verdict import judge, offset_note, tolerance_pct
+from rigkit.reporting.verdict import judge, row_label, run_shortfalls, two_sigma_pct
 from rigkit.rig import load_rig
 from tests.conftest import make_row
 
@@ -17,12 +19,12 @@ SYNTHETIC = load_rig(ROOT / "rigs" / "synthetic.yaml")  # 4608 px, exact: 2 sigm
 P1000 = load_rig(ROOT / "rigs" / "p1000-tripod.yaml")  # f known to 1 %: 2 sigma > 3 %
 
 
-def test_tolerance_is_one_percent_or_the_rigs_two_sigma() -> None:
-    assert tolerance_pct(SYNTHETIC, 300.0) == 1.0
-    assert tolerance_pct(P1000, 300.0) > 3.0
-    assert tolerance_pct(P1000, math.nan) == 1.0
-    # Bursts shrink the offset's share of the budget, and so the tolerance.
-    assert tolerance_pct(P1000, 500.0, frames=5) < tolerance_pct(P1000, 500.0)
+def test_two_sigma_is_the_rigs_budget() -> None:
+    assert two_sigma_pct(SYNTHETIC, 300.0) < 1.0
+    assert two_sigma_pct(P1000, 300.0) > 3.0
+    assert math.isnan(two_sigma_pct(P1000, math.nan))
+    # Bursts shrink the offset's share of the budget, and so the 2 sigma.
+    assert two_sigma_pct(P1000, 500.0, frames=5) < two_sigma_pct(P1000, 500.0)
 
 
 def test_all_targets_within_one_percent_is_done() -> None:
@@ -30,6 +32,7 @@ def test_all_targets_within_one_percent_is_done() -> None:
     verdict = judge(rows, SYNTHETIC)
     assert verdict.ok and verdict.headline == "3/3 targets within 1 %: done"
     assert verdict.advice == ()
+    assert [t.label for t in verdict.targets] == ["within 1 %"] * 3
 
 
 def test_failures_say_what_to_capture_again() -> None:
@@ -43,7 +46,9 @@ def test_failures_say_what_to_capture_again() -> None:
     assert not verdict.ok
     assert verdict.headline == "1/4 targets within 1 %: capture again"
     assert [t.ok for t in verdict.targets] == [True, False, False, False]
-    assert "T2: off by +2.5 %" in verdict.advice
+    assert any(a.startswith("T2: 2.50 %: outside 1 %, outside the 2σ of ±0.") for a in
+               verdict.advice)
+    assert "T3: no estimate" in verdict.advice and "T4: no reading" in verdict.advice
     assert any("without a reading" in a for a in verdict.advice)
     assert any("textured ground" in a for a in verdict.advice)
 
@@ -56,9 +61,35 @@ def test_a_common_bias_points_at_the_baselines() -> None:
     assert not any("C_lr and C_lb" in a for a in mixed)
 
 
-def test_a_loose_rig_states_its_tolerance() -> None:
-    verdict = judge([make_row("T1", 300.0, 2.0)], P1000)
-    assert verdict.ok and verdict.headline.startswith("1/1 targets within tolerance (up to 3.")
+def test_a_loose_rig_misses_the_goal_and_says_its_two_sigma() -> None:
+    # Before: the tolerance grew to the rig's 2 sigma and "2 %" passed as "ok".
+    (target,) = judge([make_row("T1", 300.0, 1.43)], P1000).targets
+    assert not target.ok
+    assert target.label.startswith("1.43 %: outside 1 %, inside the 2σ of ±3.")
+
+
+def test_a_wild_reading_cannot_widen_its_own_tolerance() -> None:
+    # A typed 3000000 for 300.0: the 2σ is the rig's at the estimate (300 m), not at the
+    # reading, so the target is far outside it (it was "4/4 within (up to 13492.4 %)").
+    row = make_row("T4", 300.0, 0.0)
+    row = replace(row, laser_range_m=3_000_000.0, error_pct=-99.99)
+    (target,) = judge([row], SYNTHETIC).targets
+    assert not target.ok and "outside the 2σ of ±0." in target.label
+
+
+def test_a_shortfall_keeps_the_verdict_from_done() -> None:
+    # Before: "done" beside "the offset alone leaves +-2.68 % of depth".
+    rows = [make_row("T1", 300.0, 0.2)]
+    note = "the disparity offset alone leaves +-2.68 % of depth (1 sigma) at the median range"
+    verdict = judge(rows, SYNTHETIC, shortfalls=[note])
+    assert not verdict.ok and "done" not in verdict.headline
+    assert verdict.headline.startswith("1/1 targets within 1 %: capture again")
+
+
+def test_row_labels_are_the_verdicts_words_without_the_rig() -> None:
+    assert row_label(make_row("T1", 300.0, -0.4)) == "within 1 %"
+    assert row_label(make_row("T1", 300.0, 1.43)) == "1.43 %: outside 1 %"
+    assert row_label(make_row("T1", 300.0, 0.0, status=STATUS_NO_ESTIMATE)) == "no estimate"
 
 
 def test_no_targets_is_not_done() -> None:
@@ -66,13 +97,11 @@ def test_no_targets_is_not_done() -> None:
     assert not verdict.ok and "no laser targets" in verdict.headline
 
 
-def test_offset_note_from_the_latest_run(tmp_path: Path) -> None:
-    assert offset_note(tmp_path) is None  # not processed yet
+def test_shortfalls_of_the_latest_run(tmp_path: Path) -> None:
+    assert run_shortfalls(tmp_path) == ()  # not processed yet
     results = tmp_path / RESULTS_DIR
     results.mkdir()
-    for fraction, note in ((0.0012, None), (0.0042, "+-0.42 % of depth"), (None, None)):
-        (results / "depth.json").write_text(json.dumps({"offset_depth_error_fraction": fraction}))
-        got = offset_note(tmp_path)
-        assert got is None if note is None else note in str(got)
+    (results / "depth.json").write_text(json.dumps({"shortfalls": ["the offset ..."]}))
+    assert run_shortfalls(tmp_path) == ("the offset ...",)
     (results / "depth.json").write_text("{not json")
-    assert offset_note(tmp_path) is None
+    assert run_shortfalls(tmp_path) == ()

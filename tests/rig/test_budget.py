@@ -168,24 +168,27 @@ def test_frames_for_offset_is_the_shortest_burst_within_the_bar_nine_times_in_te
 def test_burst_warning_only_for_a_burst_shorter_than_the_shimmer_calls_for() -> None:
     from rigkit.pipeline.shimmer import Shimmer
 
-    full, f = (4608, 3456), 43962.9
+    rig = load_rig(SYNTHETIC)  # 4608x3456, f 43962.9 px, C_lr 2 m
     shimmer = Shimmer(rms_px=0.3, corr_px=46.08, tracker_px=0.05, points=1900)
     # At 300 m: 5 frames per position (above).
-    assert burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, 300.0, 5) is None
-    text = burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, 300.0, 3)
+    assert burst_warning(rig, shimmer, "left frames 1 and 2", 300.0, 5) is None
+    text = burst_warning(rig, shimmer, "left frames 1 and 2", 300.0, 3)
     assert text == ("heat shimmer 0.30 px RMS (left frames 1 and 2): take 5 frames per "
                     "position to keep the offset within 0.3 % of depth at 300 m (9 times in "
                     "10); this capture has 3")
-    far = burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, 500.0, 64)
+    far = burst_warning(rig, shimmer, "left frames 1 and 2", 500.0, 64)
     assert far is not None and "at 500 m no burst keeps the offset within 0.3 %" in far
-    assert burst_warning(shimmer, "left frames 1 and 2", full, f, 2.0, float("nan"), 1) is None
+    assert burst_warning(rig, shimmer, "left frames 1 and 2", float("nan"), 1) is None
 
 
 def test_the_profile_model_budgets_one_frame_unless_told(tmp_path: Path) -> None:
     profile = load_rig(P1000)
     derived = ErrorModel.from_profile(profile)
-    assert derived.offset_error_px == pytest.approx(math.hypot(0.37, 0.84))
-    assert (derived.frames, derived.shimmer_px) == (1, 0.3)
+    # Moderate air (6.8 urad RMS over 1.05 mrad) at the P1000's 53,251 px: 0.363 px over
+    # 55.8 px, 1.21 times the patches of the measured figure.
+    share = 2.8 * 0.3 * 53251.2 / 43962.94 * (46.08 * 53251.2 / 43962.94 / 46.08)
+    assert derived.offset_error_px == pytest.approx(math.hypot(0.37, share), rel=1e-4)
+    assert derived.frames == 1 and derived.shimmer_px == pytest.approx(0.3634, abs=1e-4)
     burst = ErrorModel.from_profile(profile, frames=5)
     assert burst.offset_error_px < derived.offset_error_px
     given = ErrorModel.from_profile(profile, offset_error_px=0.5)

@@ -158,7 +158,7 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
                        60)
         verdict = text(app, "#verdict")
         assert "0/1 targets within" in verdict and "capture again" in verdict
-        assert "T1: off by +" in verdict
+        assert "T1: 21.00 %: outside 1 %" in verdict
         await pilot.press("b", "m", *"300", "enter", "n")  # one more reading: run again
         await wait_for(pilot, lambda: len(runs(session.path)) == 2, "the second run", 60)
         await wait_for(pilot, lambda: "targets within" in text(app, "#verdict"), "the verdict")

@@ -16,7 +16,7 @@ from rigkit.batch import new_run_id, process_session
 from rigkit.capture import RESULTS_DIR, read_rows
 from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError, environment_message
-from rigkit.reporting.verdict import judge, offset_note
+from rigkit.reporting.verdict import judge, run_shortfalls
 from rigkit.tui.screens.common import StepScreen, escape, session_of
 from rigkit.tui.widgets import PixelView
 
@@ -99,7 +99,8 @@ class ProcessScreen(StepScreen):
     def _show_results(self, rows: list[Comparison]) -> None:
         session = session_of(self)
         self.query_one(ProgressBar).update(progress=1.0)
-        verdict = judge(rows, session.rig(), frames=session.burst_length)
+        shortfalls = run_shortfalls(session.path)
+        verdict = judge(rows, session.rig(), frames=session.burst_length, shortfalls=shortfalls)
         table = self.query_one(DataTable)
         table.clear()
         for row, target in zip(rows, verdict.targets, strict=True):
@@ -108,9 +109,7 @@ class ProcessScreen(StepScreen):
                           error, "✔" if target.ok else "✘")
         colour = "$success" if verdict.ok else "$error"
         advice = "".join(f"\n- {escape(a)}" for a in verdict.advice)
-        note = offset_note(session.path)
-        if note:
-            advice += f"\n[$warning]{escape(note)}[/]"
+        advice += "".join(f"\n[$warning]{escape(note)}[/]" for note in shortfalls)
         self.query_one("#verdict", Static).update(
             f"[b {colour}]{escape(verdict.headline)}[/]{advice}")
         depth = cv2.imread(str(session.path / RESULTS_DIR / "depth.png"), cv2.IMREAD_COLOR)
