@@ -39,7 +39,7 @@ from rigkit.pipeline.features import match_views
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import SceneTruth, load_scene
 from rigkit.synth.evaluate import offset_error_px
-from rigkit.synth.render import shimmer_field
+from rigkit.synth.shimmer import shimmer_field
 
 VIEWS = ("left", "right", "back")
 

@@ -5,7 +5,7 @@ The offset is fitted from where the back camera sees points of the left image
 (:mod:`rigkit.pipeline.ambiguity`). Heat shimmer moves each frame's image by a smooth
 random field, so nearby matches share their errors, and more matches stop adding
 information once they are closer together than the shimmer's patches. The renderer's
-field (:func:`rigkit.synth.render.shimmer_field`, white noise blurred by a Gaussian of
+field (:func:`rigkit.synth.shimmer.shimmer_field`, white noise blurred by a Gaussian of
 sigma ``c``) has, per axis, the covariance ``rms^2 exp(-r^2 / (4 c^2))`` between points
 ``r`` apart. A left/back match's error is the left frame's field at its left pixel plus
 the back frame's (an independent draw) at its back pixel - the coarse map between the

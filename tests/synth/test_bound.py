@@ -23,7 +23,7 @@ from rigkit.synth.bound import (
     shimmer_covariance,
 )
 from rigkit.synth.evaluate import visible_in_right
-from rigkit.synth.render import shimmer_field
+from rigkit.synth.shimmer import shimmer_field
 
 RMS, CORR = 0.3, 6.0
 
