@@ -20,7 +20,11 @@ Three spectra (``SynthParams.shimmer_spectrum``), each field scaled to an RMS of
   ``(6/5) pi c L0^(5/3)``, the share of the variance at spatial frequencies above
   ``f`` is ``(1 + (f L0)^2)^(-5/6)``: with L0 = 1500 px, 1.1 % above 1/100 px^-1 and
   0.02 % above 1/10 px^-1. Most of the motion is a large-scale tilt and warp of the
-  whole frame; the scaling to ``rms_px`` sets ``c``.
+  whole frame; the scaling to ``rms_px`` sets ``c``. (The angle of arrival through one
+  aperture, the wavefront's gradient averaged over it, has the per-axis pupil-plane
+  spectrum ``f_x^2 (f^2 + 1/L0^2)^(-11/6)`` times the aperture's filter - Conan, Rousset
+  & Madec, JOSA A 12, 1995 - with more of its variance at small scales: see
+  docs/synthetic-scenes.md.)
 
 The von Karman field is drawn on a periodic grid (white noise filtered by ``sqrt(W)``
 with FFTs) one period of which holds the image and 4 L0 more, so that opposite edges of

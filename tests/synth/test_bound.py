@@ -130,6 +130,12 @@ def test_a_scene_without_shimmer_has_no_bound(truth, result) -> None:
         offset_bound(truth, result, np.zeros((10, 2)))
 
 
+def test_other_shimmer_spectra_have_no_bound(truth, result) -> None:
+    params = replace(truth.params, shimmer_px=0.3, shimmer_spectrum="vonkarman")
+    with pytest.raises(InputError, match="gaussian shimmer only, not of vonkarman"):
+        offset_bound(replace(truth, params=params), result, np.zeros((10, 2)))
+
+
 def test_a_grid_coarser_than_the_image_is_refused(shimmered) -> None:
     truth, (left, _, back), _, result = shimmered
     m = match_views(left, back, "left/back")
