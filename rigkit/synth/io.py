@@ -122,9 +122,7 @@ class SceneTruth:
         folder = self.path / "ground_truth"
         if not (folder / MOVED_FILE).is_file():
             return None
-        shadow = folder / SHADOW_FILE
-        moved = np.load(folder / MOVED_FILE)
-        return moved, (np.load(shadow) if shadow.is_file() else np.zeros_like(moved))
+        return np.load(folder / MOVED_FILE), np.load(folder / SHADOW_FILE)
 
     def image_path(self, view: str) -> Path:
         """The rendered image; in a synthetic session it lives in ``raw/``."""

@@ -16,7 +16,7 @@ At 300 m and the paper's 6 deg view (43,963 px focal length at 4608 px) a 4.5 m 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -110,8 +110,8 @@ def _pose(
     x = float(rng.uniform(-0.85, 0.85) * half_w)
     xs = x + np.linspace(-ext_x, ext_x, 5)
     top = max(-0.85 * half_h, float(np.max(terrain.skyline_y(xs))) + 0.2)
-    lowest = top + height  # y grows downwards
-    y = float(rng.uniform(lowest, max(lowest, 0.9 * half_h)))
+    highest_base = top + height  # y grows downwards: the base is at least this low
+    y = float(rng.uniform(highest_base, max(highest_base, 0.9 * half_h)))
     gx, gy = np.meshgrid(xs, np.linspace(y - height, y, 5))
     z = float(np.min(terrain.z(gx, gy)) - rng.uniform(0.5, 3.0) - ext_z)
     return x, y, z, yaw
@@ -141,6 +141,6 @@ def make_movers(
             present[rng.integers(3)] = True
         mover = Mover(kind, parts, first_texture + i)
         views = [v for v, p in zip(VIEWS, present, strict=True) if p]
-        poses = {v: _pose(mover, terrain, half_w, half_h, rng) for v in views}
-        movers.append(Mover(kind, parts, first_texture + i, poses))
+        movers.append(replace(mover, poses={v: _pose(mover, terrain, half_w, half_h, rng)
+                                            for v in views}))
     return tuple(movers), tuple(textures)
