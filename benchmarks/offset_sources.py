@@ -39,7 +39,7 @@ from rigkit.pipeline.features import match_views
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import SceneTruth, load_scene
 from rigkit.synth.evaluate import offset_error_px
-from rigkit.synth.render import shimmer_field
+from rigkit.synth.shimmer import displacement_field
 
 VIEWS = ("left", "right", "back")
 
@@ -52,11 +52,12 @@ def _sample(field: np.ndarray, pts: np.ndarray) -> np.ndarray:
 def _shimmer(truth: SceneTruth, view: str, shape: tuple[int, int], pts: np.ndarray) -> np.ndarray:
     """(N, 2) px: the renderer's shimmer displacement of ``view``'s frame 0 at ``pts``
     (zero where the scene has none); drawn as :func:`rigkit.synth.render.expose` does."""
-    rms, corr = truth.params.shimmer_px, truth.params.shimmer_corr_px
-    if not rms:
+    p = truth.params
+    if not p.shimmer_px:
         return np.zeros((len(pts), 2))
     rng = np.random.default_rng([truth.seed, sorted(VIEWS).index(view), 0])
-    dx, dy = shimmer_field(shape, rms, corr, rng)
+    dx, dy = displacement_field(shape, p.shimmer_px, p.shimmer_spectrum, p.shimmer_corr_px,
+                                p.shimmer_outer_px, rng)
     return np.stack([_sample(dx, pts), _sample(dy, pts)], axis=1)
 
 

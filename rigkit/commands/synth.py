@@ -14,9 +14,13 @@ EXAMPLE = """example:
   rigkit synth capture/synth-5 --seed 5 --width 1152 --height 864 --session --targets 6
   rigkit synth out/field-9 --seed 9 --field                 # sky, haze, shimmer, exposure...
   rigkit synth out/field-9b --seed 9 --field --burst 5 --distortion 0.47
+  rigkit synth out/town-4 --seed 4 --movers 8 --shadows 2 --facades 2   # what moves, hard walls
+  rigkit synth out/air-9 --seed 9 --field --shimmer-spectrum vonkarman --shimmer-outer 1500
 
 flags given explicitly override the rig profile; without --rig the defaults are the paper's.
 """
+# rigkit.synth.shimmer.SPECTRA, named here so that --help does not import the renderer
+SHIMMER_SPECTRA = ("gaussian", "fine", "vonkarman")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     field = p.add_argument_group(
         "field conditions",
         "what a real capture adds; --field turns on a realistic set (sky 0.25, haze 1500 m, "
-        "gain 0.1, offset 6 DN, vignetting 0.25, shimmer 0.3 px over 1 %% of the width); "
+        "gain 0.1, offset 6 DN, vignetting 0.25, shimmer 0.3 px over 1 % of the width); "
         "each flag below overrides it",
     )
     field.add_argument("--field", action="store_true", help="a realistic field capture")
@@ -58,9 +62,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     field.add_argument("--vignetting", type=float, help="brightness lost at the corner (fraction)")
     field.add_argument("--shimmer", type=float, help="heat shimmer, RMS px per axis")
     field.add_argument("--shimmer-corr", type=float, help="shimmer correlation length, px")
+    field.add_argument("--shimmer-spectrum", choices=SHIMMER_SPECTRA,
+                       help="shimmer spectrum: gaussian (one correlation length, the "
+                       "default), fine (half its variance 8 times finer) or vonkarman (power "
+                       "law with an outer scale; docs/synthetic-scenes.md)")
+    field.add_argument("--shimmer-outer", type=float, metavar="PX",
+                       help="vonkarman outer scale, px (default 1500)")
     field.add_argument("--distortion", metavar="K1[,K2[,P1,P2[,K3]]]",
                        help="lens distortion (OpenCV model, normalised coordinates), all views")
     field.add_argument("--burst", type=int, help="frames per camera position (default 1)")
+    world = p.add_argument_group(
+        "a world that moves",
+        "what changes between the three captures (minutes apart) and walls stereo finds "
+        "hard; all off by default, and ground_truth/moved_left.npy and "
+        "shadow_changed_left.npy mark the left pixels where the views disagree",
+    )
+    world.add_argument("--movers", type=int, metavar="N",
+                       help="cars and people, placed anew in each view")
+    world.add_argument("--shadows", type=int, metavar="N",
+                       help="cloud shadows drifting between captures")
+    world.add_argument("--shadow-drift", type=float, metavar="M",
+                       help="cloud shadow drift between two captures, m (default 6)")
+    world.add_argument("--facades", type=int, metavar="N",
+                       help="building facades: periodic windows and plain walls, alternately")
     p.add_argument("--session", action="store_true",
                    help="write a capture session (raw/, session.yaml, rig.yaml) with "
                    "simulated laser targets, ready for `rigkit process`")
@@ -135,7 +159,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-_FIELD_FLAGS = {
+# Flags of the "field conditions" and "a world that moves" groups -> SynthParams fields.
+_CONDITION_FLAGS = {
     "sky": "sky",
     "haze": "haze_m",
     "gain_jitter": "gain_jitter",
@@ -143,12 +168,18 @@ _FIELD_FLAGS = {
     "vignetting": "vignetting",
     "shimmer": "shimmer_px",
     "shimmer_corr": "shimmer_corr_px",
+    "shimmer_spectrum": "shimmer_spectrum",
+    "shimmer_outer": "shimmer_outer_px",
     "burst": "burst",
+    "movers": "n_movers",
+    "shadows": "n_shadows",
+    "shadow_drift": "shadow_drift_m",
+    "facades": "n_facades",
 }
 
 
 def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
-    """``params`` with --field's preset and the field flags given applied."""
+    """``params`` with --field's preset and the field and world flags given applied."""
     from dataclasses import replace
 
     from rigkit.commands import parse_distortion
@@ -157,7 +188,7 @@ def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
     if args.field:
         params = field_params(params)
     changes: dict[str, Any] = {
-        name: getattr(args, flag) for flag, name in _FIELD_FLAGS.items()
+        name: getattr(args, flag) for flag, name in _CONDITION_FLAGS.items()
         if getattr(args, flag) is not None
     }
     if args.distortion is not None:

@@ -12,7 +12,7 @@ rises from the tracker's noise ``n`` between neighbouring points to the shimmer'
 variance, twice one frame's ``s^2``, between points farther apart than its patches.
 Fitting it (Matheron's variogram, as in geostatistics) separates the shimmer from the
 tracker without knowing either. ``c`` is the Gaussian correlation length the
-synthetic scenes draw their shimmer with (:func:`rigkit.synth.render.shimmer_field`);
+synthetic scenes draw their shimmer with (:func:`rigkit.synth.shimmer.shimmer_field`);
 real turbulence has a longer tail, so for it ``c`` is the best Gaussian match.
 
 The measurement runs on a central crop at full resolution: shimmer of a few tenths of

@@ -5,7 +5,7 @@ The offset is fitted from where the back camera sees points of the left image
 (:mod:`rigkit.pipeline.ambiguity`). Heat shimmer moves each frame's image by a smooth
 random field, so nearby matches share their errors, and more matches stop adding
 information once they are closer together than the shimmer's patches. The renderer's
-field (:func:`rigkit.synth.render.shimmer_field`, white noise blurred by a Gaussian of
+field (:func:`rigkit.synth.shimmer.shimmer_field`, white noise blurred by a Gaussian of
 sigma ``c``) has, per axis, the covariance ``rms^2 exp(-r^2 / (4 c^2))`` between points
 ``r`` apart. A left/back match's error is the left frame's field at its left pixel plus
 the back frame's (an independent draw) at its back pixel - the coarse map between the
@@ -162,10 +162,14 @@ def offset_bound(
     ``GRID_STEP`` shimmer correlation lengths; memory grows as its inverse 4th power:
     two N x N arrays, ~1.6 GB for 10 000 points). The lens is taken as ideal: on a
     scene with distortion the figures are approximate. Raises InputError for a scene
-    without shimmer or with fewer than ``MIN_MATCHES`` points on its surface."""
+    without shimmer, with shimmer of another spectrum than gaussian, or with fewer than
+    ``MIN_MATCHES`` points on its surface."""
     rms, corr = truth.params.shimmer_px, truth.params.shimmer_corr_px
     if rms <= 0:
         raise InputError(f"{truth.path}: the scene has no heat shimmer to bound the offset by")
+    if truth.params.shimmer_spectrum != "gaussian":
+        raise InputError(f"{truth.path}: the bound knows the covariance of gaussian shimmer "
+                         f"only, not of {truth.params.shimmer_spectrum}")
     params = result.ambiguity.parameters
     f = result.rectification.K[0, 0]
     visible = visible_in_right(truth)

@@ -4,6 +4,15 @@ A left pixel is judged when it has ground-truth depth and the right camera sees 
 same surface point (inside the right image and not occluded there, from the ground
 truth poses and the right view's own depth). A judged pixel without an estimate
 (NaN) counts as a miss: it is in the denominator but under no threshold.
+
+Where the world moves between the captures (a scene with movers or cloud shadows has
+``ground_truth/moved_left.npy``, :mod:`rigkit.synth.changes`), :class:`ChangeMetrics`
+splits the score: the static pixels (judged, neither moved nor under a changing cloud
+shadow) are scored as above; of the moved pixels (every left pixel with ground truth
+that a mover covers in any view, judged or not: the right view may not see that
+surface at all) it counts those given any depth and those given a depth more than
+``MOVED_WRONG`` off the left view's truth; the judged pixels only a cloud shadow
+changes are scored on their own.
 """
 
 from __future__ import annotations
@@ -11,7 +20,7 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +32,22 @@ from rigkit.synth.io import SceneTruth, load_scene
 
 THRESHOLDS = (0.005, 0.01, 0.02, 0.03)
 OCCLUSION_TOLERANCE = 0.002  # relative depth difference that still counts as the same surface
+MOVED_WRONG = 0.03  # a moved pixel's depth this far off (relative) counts as wrong
+
+
+@dataclass(frozen=True)
+class ChangeMetrics:
+    """Scores split by what changed between the captures. Fractions in [0, 1], bias a
+    signed fraction; NaN where a group has no pixel."""
+
+    static_share: float  # judged pixels neither moved nor shadow-changed / judged pixels
+    static_under_1: float  # static pixels under 1 % error (a missing estimate is a miss)
+    static_bias: float  # median (estimate - truth) / truth over static pixels with an estimate
+    moved_share: float  # moved pixels / left pixels with ground truth
+    moved_density: float  # moved pixels given any depth / moved pixels
+    moved_wrong: float  # moved pixels given a depth off by more than MOVED_WRONG / moved pixels
+    shadow_share: float  # judged pixels only a cloud shadow changes / judged pixels
+    shadow_under_1: float  # of those, under 1 % error
 
 
 @dataclass(frozen=True)
@@ -42,6 +67,7 @@ class Metrics:
     # Pixels with no surface at all (sky, empty background) that received a depth, as
     # a fraction of those pixels; NaN when the scene has none.
     false_depth: float = math.nan
+    changes: ChangeMetrics | None = None  # scenes where the world moves (module docstring)
 
 
 def visible_in_right(truth: SceneTruth) -> np.ndarray:
@@ -110,6 +136,49 @@ def depth_metrics(
     )
 
 
+def _relative_errors(estimate: np.ndarray, truth: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """(N,) float64: (estimate - truth) / truth at the ``where`` pixels, NaN = no estimate."""
+    gt = truth[where].astype(np.float64)
+    return (estimate[where].astype(np.float64) - gt) / gt
+
+
+def _share(part: np.ndarray, whole: np.ndarray) -> float:
+    """count(part) / count(whole), NaN when ``whole`` is empty."""
+    n = int(np.count_nonzero(whole))
+    return float(np.count_nonzero(part)) / n if n else math.nan
+
+
+def change_metrics(
+    estimate: np.ndarray,
+    truth: np.ndarray,
+    judged: np.ndarray,
+    moved: np.ndarray,
+    shadow: np.ndarray,
+) -> ChangeMetrics:
+    """Score ``estimate`` separately on static, moved and shadow-changed pixels.
+
+    estimate, truth: (H, W) float, metres, z in the left camera (NaN = none); judged,
+    moved, shadow: (H, W) bool (:func:`visible_in_right`, ground_truth/moved_left.npy and
+    shadow_changed_left.npy)."""
+    static = judged & ~moved & ~shadow
+    shadowed = judged & ~moved & shadow
+    rel = _relative_errors(estimate, truth, static)
+    has = np.isfinite(rel)
+    rel_shadow = _relative_errors(estimate, truth, shadowed)
+    moved = moved & np.isfinite(truth)
+    rel_moved = _relative_errors(estimate, truth, moved)
+    return ChangeMetrics(
+        static_share=_share(static, judged),
+        static_under_1=_share(np.abs(rel[has]) < 0.01, static),
+        static_bias=float(np.median(rel[has])) if has.any() else math.nan,
+        moved_share=_share(moved, np.isfinite(truth)),
+        moved_density=_share(np.isfinite(rel_moved), moved),
+        moved_wrong=_share(np.abs(rel_moved[np.isfinite(rel_moved)]) > MOVED_WRONG, moved),
+        shadow_share=_share(shadowed, judged),
+        shadow_under_1=_share(np.abs(rel_shadow[np.isfinite(rel_shadow)]) < 0.01, shadowed),
+    )
+
+
 def failed_metrics(scene: str, reason: str) -> Metrics:
     nan = math.nan
     return Metrics(scene, 0, 0.0, nan, nan, nan, nan, nan, failed=True, reason=reason)
@@ -135,7 +204,12 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None) -> Metrics:
         est = np.load(estimate_path)
     except (OSError, ValueError) as exc:
         return failed_metrics(name, f"unreadable estimate {estimate_path}: {exc}")
-    return depth_metrics(est, truth.depth("left"), visible_in_right(truth), name)
+    depth, judged = truth.depth("left"), visible_in_right(truth)
+    metrics = depth_metrics(est, depth, judged, name)
+    changes = truth.changes()
+    if changes is None:
+        return metrics
+    return replace(metrics, changes=change_metrics(est, depth, judged, *changes))
 
 
 def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[Metrics]:
@@ -172,9 +246,32 @@ def format_table(rows: Sequence[Metrics]) -> str:
                       f"{100 * mean['median_bias']:+.3f}", _pct(mean["false_depth"])])
         lines.append(["worst scene <1%", "", _pct(min(m.under_1 for m in ok)), *[""] * 5])
     text = [render_table(header, lines, left=[0])]
+    if any(m.changes is not None for m in rows):
+        text.append(_changes_table(rows))
     text += [f"{m.scene}: FAILED: {m.reason}" for m in rows if m.failed]
     text.append(f"failures: {len(rows) - len(ok)} of {len(rows)} scenes")
     return "\n".join(text)
+
+
+def _changes_table(rows: Sequence[Metrics]) -> str:
+    """The scenes where the world moves: static pixels (share of the judged ones, under
+    1 %, bias), moved pixels (share of the image, given a depth, given one > 3 % off) and
+    pixels only a cloud shadow changes (share, under 1 %)."""
+    header = ["scene", "static%", "static<1%", "bias%", "moved%", "given%", "wrong>3%",
+              "shadow%", "shadow<1%"]
+    lines: list[list[str] | None] = []
+    for m in rows:
+        c = m.changes
+        if c is None:
+            continue
+        bias = "-" if math.isnan(c.static_bias) else f"{100 * c.static_bias:+.3f}"
+        lines.append([m.scene, _pct(c.static_share), _pct(c.static_under_1), bias,
+                      _pct(c.moved_share), _pct(c.moved_density), _pct(c.moved_wrong),
+                      _pct(c.shadow_share), _pct(c.shadow_under_1)])
+    title = ("where the world moves: static = judged pixels nothing changed; moved = "
+             "pixels a mover covers in any view,\ngiven a depth, given one > 3 % off; "
+             "shadow = judged pixels only a cloud shadow changed")
+    return title + "\n" + render_table(header, lines, left=[0])
 
 
 _FIELDS = (
@@ -182,10 +279,24 @@ _FIELDS = (
 )
 
 
+def _csv_row(m: Metrics, with_changes: bool) -> dict[str, object]:
+    """``m`` as one CSV row; the change scores (NaN where ``m`` has none) only
+    ``with_changes``."""
+    row: dict[str, object] = {f.name: getattr(m, f.name) for f in fields(Metrics)
+                              if f.name != "changes"}
+    if with_changes:
+        nan = {f.name: math.nan for f in fields(ChangeMetrics)}
+        row.update(asdict(m.changes) if m.changes is not None else nan)
+    return row
+
+
 def write_csv(rows: Sequence[Metrics], path: Path) -> None:
+    """The table as CSV: one row per scene, the change scores as more columns when any
+    scene has them."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    with_changes = any(m.changes is not None for m in rows)
+    table = [_csv_row(m, with_changes) for m in rows]
     with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(asdict(rows[0]).keys()))
+        writer = csv.DictWriter(fh, fieldnames=list(table[0]))
         writer.writeheader()
-        for m in rows:
-            writer.writerow(asdict(m))
+        writer.writerows(table)

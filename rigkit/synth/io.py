@@ -8,6 +8,10 @@ Layout of ``SCENE_DIR/`` (documented in docs/synthetic-scenes.md)::
     ground_truth/depth_left.npy          (H, W) float32, metres, z in the left camera, NaN = no hit
     ground_truth/depth_right.npy         same for the right camera (for visibility)
     ground_truth/depth_back.npy          same for the back camera
+    ground_truth/moved_left.npy          (H, W) bool, left pixels a mover covers in any view
+    ground_truth/shadow_changed_left.npy (H, W) bool, left pixels whose cloud shadow changes
+                                         (both only for scenes with movers or cloud shadows;
+                                         rigkit.synth.changes)
 """
 
 from __future__ import annotations
@@ -23,11 +27,14 @@ from rigkit.core.files import write_npy, write_png, write_text
 from rigkit.core.yamlfile import dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Camera, distortion_coefficients
-from rigkit.synth.render import expose, render_view
+from rigkit.synth.changes import moved_left, shadow_changed_left
+from rigkit.synth.render import Layers, expose, render_layers
 from rigkit.synth.scene import Scene, SynthParams
+from rigkit.synth.shapes import VIEWS
 
-VIEWS = ("left", "right", "back")
 SCENE_FILE = "scene.yaml"
+MOVED_FILE = "moved_left.npy"
+SHADOW_FILE = "shadow_changed_left.npy"
 
 
 def _camera_dict(cam: Camera, euler: tuple[float, float, float]) -> dict[str, object]:
@@ -58,15 +65,22 @@ def write_scene(
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "ground_truth").mkdir(exist_ok=True)
     timings: dict[str, float] = {}
+    left: Layers | None = None
     for name in VIEWS:
         t0 = time.perf_counter()
         cb = (lambda frac, n=name: progress(n, frac)) if progress else None
-        radiance, depth = render_view(scene, name, cb)
+        layers = render_layers(scene, name, cb)
         for k in range(scene.params.burst):
-            image = expose(scene, name, radiance, frame=k)
+            image = expose(scene, name, layers.radiance, frame=k)
             write_png(out_dir / frame_name(name, k), image, compression=3)
-        write_npy(out_dir / "ground_truth" / f"depth_{name}.npy", depth)
+        write_npy(out_dir / "ground_truth" / f"depth_{name}.npy", layers.depth)
+        if name == "left":
+            left = layers
         timings[name] = time.perf_counter() - t0
+    if left is not None and (scene.movers or scene.shadows):
+        truth = out_dir / "ground_truth"
+        write_npy(truth / MOVED_FILE, moved_left(scene, left.surface, left.depth))
+        write_npy(truth / SHADOW_FILE, shadow_changed_left(scene, left.depth))
     meta = {
         "format": "rigkit-synthetic-scene/1",
         "seed": scene.seed,
@@ -101,6 +115,14 @@ class SceneTruth:
         if not p.is_file():
             raise InputError(f"{self.path}: missing ground truth {p.name}")
         return np.load(p)
+
+    def changes(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(moved, shadow_changed), each (H, W) bool over the left view
+        (:mod:`rigkit.synth.changes`), or None for a scene where nothing moves."""
+        folder = self.path / "ground_truth"
+        if not (folder / MOVED_FILE).is_file():
+            return None
+        return np.load(folder / MOVED_FILE), np.load(folder / SHADOW_FILE)
 
     def image_path(self, view: str) -> Path:
         """The rendered image; in a synthetic session it lives in ``raw/``."""

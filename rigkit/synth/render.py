@@ -2,27 +2,35 @@
 
 Every pixel centre casts one ray (through the lens distortion, when the scene has
 one); the nearest hit among the terrain (solved by fixed-point iteration to
-micrometres, cut away above the skyline), the boxes (slab test) and the spheres
-(closed form) gives the depth and the surface point whose texture is looked up. Rays
-that hit nothing see a smooth sky; haze blends every hit towards the sky's brightness
-with distance.
+micrometres, cut away above the skyline), the boxes (slab test; facades and the parts
+of the movers there when this view is taken included) and the spheres (closed form)
+gives the depth and the surface point whose texture (a photograph, or a facade's
+walls and windows) is looked up. Cloud shadows, where the scene has them, dim the
+surface by their factor at that point for this view. Rays that hit nothing see a
+smooth sky; haze blends every hit towards the sky's brightness with distance.
 
-:func:`expose` turns that radiance into one 8-bit frame: heat shimmer (a smooth random
-displacement field, new in every frame), a small Gaussian point-spread function,
-vignetting, the frame's gain and offset, shot and read noise.
+:func:`expose` turns that radiance into one 8-bit frame: heat shimmer (a random
+displacement field, new in every frame, :mod:`rigkit.synth.shimmer`), a small Gaussian
+point-spread function, vignetting, the frame's gain and offset, shot and read noise.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from functools import cache
 
 import cv2
 import numpy as np
 
 from rigkit.geometry import Camera, euler_to_matrix, undistort
-from rigkit.synth.scene import Box, Scene, Sphere, TextureMap
+from rigkit.synth.facades import FacadeLook, facade_albedo
+from rigkit.synth.movers import Paint, painted
+from rigkit.synth.scene import Scene
+from rigkit.synth.shadows import shadow_factor
+from rigkit.synth.shapes import FACE_SHIFT, Box, Sphere, TextureMap
+from rigkit.synth.shimmer import displacement_field
 
 TERRAIN = 0
 CHUNK_ROWS = 192
@@ -93,7 +101,7 @@ def terrain_seed(scene: Scene, cam: Camera) -> np.ndarray:
     return full[: cam.height, : cam.width]
 
 
-def _box_hits(box: Box, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def box_hits(box: Box, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Slab test. Returns t (inf on miss), world normal (.., 3) and surface coords (.., 2)."""
     Rb = euler_to_matrix(*box.euler_deg).T  # world -> box axes
     half = np.array(box.half)
@@ -115,11 +123,11 @@ def _box_hits(box: Box, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.nd
     other1 = np.take_along_axis(p, ((axis + 1) % 3)[..., None], -1)[..., 0]
     other2 = np.take_along_axis(p, ((axis + 2) % 3)[..., None], -1)[..., 0]
     face = axis * 2 + (sign > 0)
-    st = np.stack([other1 + 7.3 * face, other2 - 5.1 * face], axis=-1)
+    st = np.stack([other1 + FACE_SHIFT[0] * face, other2 + FACE_SHIFT[1] * face], axis=-1)
     return t, n_local @ Rb, st
 
 
-def _sphere_hits(sph: Sphere, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, ...]:
+def sphere_hits(sph: Sphere, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, ...]:
     c = np.array(sph.center)
     oc = o - c
     a = np.einsum("...i,...i->...", d, d)
@@ -141,7 +149,7 @@ def _sphere_hits(sph: Sphere, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray,
     return t, n, st
 
 
-def _object_rect(
+def object_rect(
     cam: Camera, corners: np.ndarray, bend_px: float
 ) -> tuple[int, int, int, int] | None:
     """Pixel rectangle (u0, u1, v0, v1) that contains the projection of ``corners``,
@@ -159,7 +167,7 @@ def _object_rect(
     return int(u0), int(u1), int(v0), int(v1)
 
 
-def _max_distortion_px(cam: Camera) -> float:
+def max_distortion_px(cam: Camera) -> float:
     """Largest displacement (px) the lens distortion gives a pixel on the image border."""
     u = np.r_[np.linspace(0, cam.width - 1, 33), np.zeros(33), np.full(33, cam.width - 1)]
     v = np.r_[np.zeros(33), np.linspace(0, cam.height - 1, 33), np.linspace(0, cam.height - 1, 33)]
@@ -167,38 +175,79 @@ def _max_distortion_px(cam: Camera) -> float:
     return float(np.max(np.hypot(x * cam.f + cam.K[0, 2] - u, y * cam.f + cam.K[1, 2] - v)))
 
 
-def _box_corners(box: Box) -> np.ndarray:
+def box_corners(box: Box) -> np.ndarray:
     signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     Rb = euler_to_matrix(*box.euler_deg)  # box axes -> world
     return np.array(box.center) + (signs * np.array(box.half)) @ Rb.T
 
 
-def _sphere_corners(s: Sphere) -> np.ndarray:
+def sphere_corners(s: Sphere) -> np.ndarray:
     signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     return np.array(s.center) + signs * s.radius
+
+
+@dataclass(frozen=True)
+class Layers:
+    """One rendered view. radiance: (H, W) float32 in [0, 1] before the PSF and noise;
+    depth: (H, W) float32, metres, z in the camera's frame, NaN where no surface;
+    surface: (H, W) int16, the texture index of the surface seen (0 the terrain, the
+    shapes' ``texture`` otherwise), -1 where no surface."""
+
+    radiance: np.ndarray
+    depth: np.ndarray
+    surface: np.ndarray
+
+
+def view_objects(scene: Scene, name: str) -> tuple[Box | Sphere, ...]:
+    """Every box and sphere in front of the terrain when view ``name`` is taken: the
+    static ones (facades included) and the movers there at that moment."""
+    movers = tuple(b for m in scene.movers for b in m.boxes(name))
+    return (*scene.boxes, *scene.spheres, *movers)
+
+
+def albedo(tex: TextureMap | FacadeLook | Paint, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Albedo (float32, shape of ``s``) of a surface wearing ``tex`` at surface
+    coordinates ``(s, t)`` (m)."""
+    if isinstance(tex, FacadeLook):
+        return facade_albedo(tex, s, t)
+    if isinstance(tex, Paint):
+        return painted(tex, sample_texture(tex.texture, s, t))
+    return sample_texture(tex, s, t)
+
+
+def objects_in_view(
+    cam: Camera, objects: tuple[Box | Sphere, ...]
+) -> list[tuple[Box | Sphere, tuple[int, int, int, int]]]:
+    """The objects whose projection touches the image, with their pixel rectangles."""
+    bend_px = max_distortion_px(cam)
+    out = []
+    for obj in objects:
+        corners = box_corners(obj) if isinstance(obj, Box) else sphere_corners(obj)
+        rect = object_rect(cam, corners, bend_px)
+        if rect is not None:
+            out.append((obj, rect))
+    return out
 
 
 def render_view(
     scene: Scene, name: str, progress: Callable[[float], None] | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Render one camera of ``scene``.
+    """Render one camera of ``scene``: ``(radiance, depth)`` of :func:`render_layers`."""
+    layers = render_layers(scene, name, progress)
+    return layers.radiance, layers.depth
 
-    Returns ``(radiance, depth)``: radiance (H, W) float32 in [0, 1] before the PSF and
-    noise; depth (H, W) float32, metres, z in this camera's frame (NaN where no surface).
-    """
+
+def render_layers(
+    scene: Scene, name: str, progress: Callable[[float], None] | None = None
+) -> Layers:
+    """Render one camera of ``scene`` (``progress`` gets the fraction of rows done)."""
     cam = scene.cameras[name]
     H, W = cam.height, cam.width
     seed_t = terrain_seed(scene, cam)
     radiance = np.empty((H, W), np.float32)
     depth = np.empty((H, W), np.float32)
-    objects: list[tuple[Box | Sphere, tuple[int, int, int, int]]] = []
-    everything: tuple[Box | Sphere, ...] = (*scene.boxes, *scene.spheres)
-    bend_px = _max_distortion_px(cam)
-    for obj in everything:
-        corners = _box_corners(obj) if isinstance(obj, Box) else _sphere_corners(obj)
-        rect = _object_rect(cam, corners, bend_px)
-        if rect is not None:
-            objects.append((obj, rect))
+    surface = np.empty((H, W), np.int16)
+    objects = objects_in_view(cam, view_objects(scene, name))
     light = np.array(scene.light) / np.linalg.norm(scene.light)
     done = [0]
 
@@ -218,7 +267,7 @@ def render_view(
             if a0 >= a1:
                 continue
             win = (slice(a0, a1), slice(u0, u1))
-            hit = _box_hits if isinstance(obj, Box) else _sphere_hits
+            hit = box_hits if isinstance(obj, Box) else sphere_hits
             to, no, sto = hit(obj, cam.C, d[win])  # type: ignore[arg-type]
             closer = to < t[win]
             t[win] = np.where(closer, to, t[win])
@@ -226,24 +275,29 @@ def render_view(
             st[win] = np.where(closer[..., None], sto, st[win])
             sid[win] = np.where(closer, obj.texture, sid[win])
         hit = np.isfinite(t)
-        albedo = np.zeros(t.shape, np.float32)
+        surf = np.zeros(t.shape, np.float32)
         for tex_id in np.unique(sid[hit]):
             m = hit & (sid == tex_id)
-            albedo[m] = sample_texture(scene.textures[tex_id], st[m][:, 0], st[m][:, 1])
+            surf[m] = albedo(scene.textures[tex_id], st[m][:, 0], st[m][:, 1])
         nn = normal / np.linalg.norm(normal, axis=-1, keepdims=True)
         facing = np.sign(-np.einsum("...i,...i->...", nn, d))[..., None]
-        shade = 0.3 + 0.7 * np.clip((nn * facing) @ light, 0, 1)
+        surf = surf * (0.3 + 0.7 * np.clip((nn * facing) @ light, 0, 1))
+        if scene.shadows:
+            X = cam.C + np.where(hit, t, 0)[..., None] * d
+            surf = surf * shadow_factor(scene.shadows, X, name, scene.light,
+                                        scene.params.distance_m)
         sky = sky_radiance(d)
-        lit = _haze(scene, albedo * shade, t * np.linalg.norm(d, axis=-1), sky)
+        lit = _haze(scene, surf, t * np.linalg.norm(d, axis=-1), sky)
         radiance[r0:r1] = np.where(hit, lit, sky)
         depth[r0:r1] = np.where(hit, t, np.nan)  # rays have unit camera-z
+        surface[r0:r1] = np.where(hit, sid, -1)
         done[0] += r1 - r0
         if progress is not None:
             progress(done[0] / H)
 
     with ThreadPoolExecutor(max_workers=2) as pool:
         list(pool.map(chunk, range(0, H, CHUNK_ROWS)))
-    return radiance, depth
+    return Layers(radiance, depth, surface)
 
 
 def sky_radiance(d: np.ndarray) -> np.ndarray:
@@ -263,25 +317,6 @@ def _haze(scene: Scene, radiance: np.ndarray, distance: np.ndarray, sky: np.ndar
     return np.where(np.isfinite(trans), radiance * trans + sky * (1 - trans), sky)
 
 
-def shimmer_field(
-    shape: tuple[int, int], rms_px: float, corr_px: float, rng: np.random.Generator
-) -> tuple[np.ndarray, np.ndarray]:
-    """A smooth random displacement field (dx, dy), each (H, W) float32 px with RMS
-    ``rms_px`` and a Gaussian correlation of sigma ``corr_px``: the image shift that
-    turbulence gives each isoplanatic patch at one instant."""
-    h, w = shape
-    step = max(1, int(corr_px / 4))
-    small = (-(-h // step) + 1, -(-w // step) + 1)
-    out = []
-    for _ in range(2):
-        white = rng.standard_normal(small).astype(np.float32)
-        field = cv2.GaussianBlur(white, (0, 0), corr_px / step)
-        field = field * np.float32(rms_px / max(float(field.std()), 1e-12))
-        up = cv2.resize(field, (small[1] * step, small[0] * step), interpolation=cv2.INTER_CUBIC)
-        out.append(up[:h, :w])
-    return out[0], out[1]
-
-
 def expose(scene: Scene, name: str, radiance: np.ndarray, frame: int = 0) -> np.ndarray:
     """Camera response for one frame: shimmer, PSF, vignetting, gain and offset, shot and
     read noise, 8-bit quantisation -> (H, W) uint8. ``frame`` numbers the frames of a
@@ -290,7 +325,8 @@ def expose(scene: Scene, name: str, radiance: np.ndarray, frame: int = 0) -> np.
     rng = np.random.default_rng([scene.seed, sorted(scene.cameras).index(name), frame])
     img = radiance
     if p.shimmer_px > 0:
-        dx, dy = shimmer_field(img.shape, p.shimmer_px, p.shimmer_corr_px, rng)
+        dx, dy = displacement_field(img.shape, p.shimmer_px, p.shimmer_spectrum,
+                                    p.shimmer_corr_px, p.shimmer_outer_px, rng)
         v, u = np.mgrid[0 : img.shape[0], 0 : img.shape[1]].astype(np.float32)
         img = cv2.remap(img, u + dx, v + dy, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
     gain = scene.gains.get(name, 1.0) * (1.0 + 0.01 * (frame > 0) * rng.standard_normal())

@@ -15,7 +15,14 @@ What a real capture adds (all off by default, the paper's protocol; on together 
 :func:`field_params`): a skyline with no surface above it and a smooth sky, haze that
 grows with distance, lens distortion (the same lens in the three views), and per frame
 heat shimmer, gain, offset, vignetting and noise, with bursts of several frames per
-position (see :mod:`rigkit.synth.render`).
+position (see :mod:`rigkit.synth.render`; shimmer spectra in :mod:`rigkit.synth.shimmer`).
+
+What changes between the captures, minutes apart, and what stereo finds hard (all off by
+default; each drawn from a generator of its own, so a seed's scene stays as it was):
+cars and people placed anew in each view (:mod:`rigkit.synth.movers`), cloud shadows
+drifting over the surface (:mod:`rigkit.synth.shadows`), and building facades with
+periodic windows or plain walls (:mod:`rigkit.synth.facades`). The left pixels where
+the views disagree are ground truth of their own (:mod:`rigkit.synth.changes`).
 """
 
 from __future__ import annotations
@@ -33,6 +40,11 @@ from rigkit.geometry import (
     focal_from_fov,
     intrinsics,
 )
+from rigkit.synth.facades import FacadeLook, make_facades
+from rigkit.synth.movers import Mover, Paint, make_movers
+from rigkit.synth.shadows import CloudShadow, make_shadows
+from rigkit.synth.shapes import Box, Sphere, Terrain, TextureMap, random_texture
+from rigkit.synth.shimmer import SPECTRA
 
 
 @dataclass(frozen=True)
@@ -64,6 +76,13 @@ class SynthParams:
     shimmer_corr_px: float = 40.0  # its correlation length (Gaussian sigma), px
     distortion: Distortion = NO_DISTORTION  # OpenCV k1, k2, p1, p2, k3 (normalised coords)
     burst: int = 1  # frames per camera position
+    shimmer_spectrum: str = "gaussian"  # gaussian | fine | vonkarman (rigkit.synth.shimmer)
+    shimmer_outer_px: float = 1500.0  # vonkarman: the outer scale L0, px
+    # A world that moves between the captures, and hard facades (0 = off):
+    n_movers: int = 0  # cars and people, placed anew in each view (rigkit.synth.movers)
+    n_shadows: int = 0  # cloud shadows drifting between captures (rigkit.synth.shadows)
+    shadow_drift_m: float = 6.0  # how far a cloud shadow moves between two captures, m
+    n_facades: int = 0  # building facades: windowed and plain walls (rigkit.synth.facades)
 
     def validate(self) -> None:
         checks = {
@@ -85,6 +104,12 @@ class SynthParams:
             "shimmer_corr_px": self.shimmer_corr_px > 0,
             "distortion": len(self.distortion) == 5 and all(np.isfinite(self.distortion)),
             "burst": 1 <= self.burst <= 50,
+            "shimmer_spectrum": self.shimmer_spectrum in SPECTRA,
+            "shimmer_outer_px": self.shimmer_outer_px > 0,
+            "n_movers": 0 <= self.n_movers <= 500,
+            "n_shadows": 0 <= self.n_shadows <= 50,
+            "shadow_drift_m": self.shadow_drift_m >= 0,
+            "n_facades": 0 <= self.n_facades <= 50,
         }
         for name, ok in checks.items():
             if not ok:
@@ -116,90 +141,19 @@ def field_params(base: SynthParams | None = None) -> SynthParams:
 
 
 @dataclass(frozen=True)
-class Terrain:
-    """``z = base + sx*x + sy*y + sum A sin(kx x + ky y + phase) + sum B exp(-r^2 / 2 s^2)``."""
-
-    base: float
-    slope: tuple[float, float]
-    waves: tuple[tuple[float, float, float, float], ...]  # (A, kx, ky, phase)
-    bumps: tuple[tuple[float, float, float, float], ...]  # (B, x0, y0, sigma)
-    texture: int
-    # Skyline y_s(x) = y0 + sum A sin(k x + phase), as (y0, ((A, k, phase), ...)): the
-    # surface ends above it (y < y_s, y down); None = it fills the view.
-    skyline: tuple[float, tuple[tuple[float, float, float], ...]] | None = None
-
-    def above_skyline(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """True where the surface point ``(x, y)`` (m, left frame) is cut away (sky)."""
-        if self.skyline is None:
-            return np.zeros(np.shape(x), bool)
-        y0, waves = self.skyline
-        ys = np.full(np.shape(x), y0)
-        for a, k, ph in waves:
-            ys = ys + a * np.sin(k * x + ph)
-        return y < ys
-
-    def z(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        out = self.base + self.slope[0] * x + self.slope[1] * y
-        for a, kx, ky, ph in self.waves:
-            out = out + a * np.sin(kx * x + ky * y + ph)
-        for b, x0, y0, s in self.bumps:
-            out = out + b * np.exp(-((x - x0) ** 2 + (y - y0) ** 2) / (2 * s * s))
-        return out
-
-    def gradient(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        gx = np.full_like(x, self.slope[0])
-        gy = np.full_like(y, self.slope[1])
-        for a, kx, ky, ph in self.waves:
-            c = a * np.cos(kx * x + ky * y + ph)
-            gx = gx + kx * c
-            gy = gy + ky * c
-        for b, x0, y0, s in self.bumps:
-            e = b * np.exp(-((x - x0) ** 2 + (y - y0) ** 2) / (2 * s * s)) / (s * s)
-            gx = gx - (x - x0) * e
-            gy = gy - (y - y0) * e
-        return gx, gy
-
-
-@dataclass(frozen=True)
-class Box:
-    """An oriented box: centre (m), half extents (m), rotation (world -> box axes)."""
-
-    center: tuple[float, float, float]
-    half: tuple[float, float, float]
-    euler_deg: tuple[float, float, float]
-    texture: int
-
-
-@dataclass(frozen=True)
-class Sphere:
-    center: tuple[float, float, float]
-    radius: float
-    texture: int
-
-
-@dataclass(frozen=True)
-class TextureMap:
-    """Which photograph a surface wears, at what scale (m per texel), rotation and offset."""
-
-    photo: str
-    texel_m: float
-    angle_deg: float
-    offset: tuple[float, float]
-    noise_seed: int
-
-
-@dataclass(frozen=True)
 class Scene:
     params: SynthParams
     seed: int
     cameras: dict[str, Camera]
     euler_deg: dict[str, tuple[float, float, float]]
     terrain: Terrain
-    boxes: tuple[Box, ...]
+    boxes: tuple[Box, ...]  # facades included: boxes whose texture is a FacadeLook
     spheres: tuple[Sphere, ...]
-    textures: tuple[TextureMap, ...]
+    textures: tuple[TextureMap | FacadeLook | Paint, ...]  # indexed by shapes' ``texture``
     light: tuple[float, float, float] = field(default=(0.35, -0.55, -0.76))
     gains: dict[str, float] = field(default_factory=dict)
+    movers: tuple[Mover, ...] = ()
+    shadows: tuple[CloudShadow, ...] = ()
 
     def description(self) -> dict[str, object]:
         """Plain data describing the geometry (for scene.yaml)."""
@@ -209,22 +163,13 @@ class Scene:
             "spheres": [asdict(s) for s in self.spheres],
             "textures": [asdict(t) for t in self.textures],
             "light": list(self.light),
+            "movers": [asdict(m) for m in self.movers],
+            "cloud_shadows": [asdict(c) for c in self.shadows],
         }
 
-
-PHOTOS = (
-    "astronaut",
-    "camera",
-    "coffee",
-    "chelsea",
-    "rocket",
-    "brick",
-    "grass",
-    "gravel",
-    "moon",
-    "coins",
-    "text",
-)
+    def moving_textures(self) -> set[int]:
+        """Texture indices that only movers wear: what marks a mover in a surface map."""
+        return {m.texture for m in self.movers}
 
 
 def _cameras(p: SynthParams, rng: np.random.Generator) -> tuple[dict[str, Camera], dict]:
@@ -309,16 +254,7 @@ def generate_scene(params: SynthParams, seed: int) -> Scene:
         terrain = replace(terrain, skyline=_skyline(params, sky_rng, half_w, half_h))
     n_tex = 1 + params.n_boxes + params.n_spheres
     pixel_m = params.distance_m / f
-    textures = tuple(
-        TextureMap(
-            photo=PHOTOS[int(rng.integers(len(PHOTOS)))],
-            texel_m=float(pixel_m * rng.uniform(1.2, 2.0)),
-            angle_deg=float(rng.uniform(0, 360)),
-            offset=(float(rng.uniform(0, 400)), float(rng.uniform(0, 400))),
-            noise_seed=int(rng.integers(2**31)),
-        )
-        for _ in range(n_tex)
-    )
+    textures = tuple(random_texture(rng, pixel_m) for _ in range(n_tex))
     relief = params.relief * params.distance_m
     boxes = []
     for i in range(params.n_boxes):
@@ -338,7 +274,7 @@ def generate_scene(params: SynthParams, seed: int) -> Scene:
         z = float(terrain.z(np.array(x), np.array(y))) - r - rng.uniform(0.2, 0.8) * max(relief, 1)
         spheres.append(Sphere((float(x), float(y), z), r, texture=1 + params.n_boxes + i))
     gains = {name: float(1 + rng.uniform(-params.gain_jitter, params.gain_jitter)) for name in cams}
-    return Scene(
+    scene = Scene(
         params=params,
         seed=seed,
         cameras=cams,
@@ -349,3 +285,21 @@ def generate_scene(params: SynthParams, seed: int) -> Scene:
         textures=textures,
         gains=gains,
     )
+    return _add_world(scene, seed, half_w, half_h)
+
+
+def _add_world(scene: Scene, seed: int, half_w: float, half_h: float) -> Scene:
+    """``scene`` with its facades, movers and cloud shadows. Each draws from a generator
+    of its own, so that they leave the rest of the seed's scene as it was."""
+    p = scene.params
+    relief = p.relief * p.distance_m
+    n = len(scene.textures)
+    facades, looks = make_facades(p.n_facades, scene.terrain, half_w, half_h, relief, n,
+                                  np.random.default_rng([seed, 11]))
+    movers, coats = make_movers(p.n_movers, scene.terrain, half_w, half_h,
+                                p.distance_m / p.focal_px, n + len(looks),
+                                np.random.default_rng([seed, 13]))
+    shadows = make_shadows(p.n_shadows, half_w, p.shadow_drift_m,
+                           np.random.default_rng([seed, 17]))
+    return replace(scene, boxes=scene.boxes + facades, textures=scene.textures + looks + coats,
+                   movers=movers, shadows=shadows)

@@ -165,7 +165,7 @@ def test_a_retake_after_a_failed_check_replaces_the_position(tmp_path: Path) -> 
 
 def _shimmered(scene: np.ndarray, rms_px: float, seed: int) -> np.ndarray:
     """``scene`` through heat shimmer (correlated over 24 px) drawn from ``seed``."""
-    from rigkit.synth.render import shimmer_field
+    from rigkit.synth.shimmer import shimmer_field
 
     dx, dy = shimmer_field(scene.shape, rms_px, 24.0, np.random.default_rng(seed))
     v, u = np.mgrid[0 : scene.shape[0], 0 : scene.shape[1]].astype(np.float32)

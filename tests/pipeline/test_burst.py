@@ -9,7 +9,7 @@ import pytest
 
 from rigkit.errors import InputError
 from rigkit.pipeline.burst import median, stack_burst
-from rigkit.synth.render import shimmer_field
+from rigkit.synth.shimmer import shimmer_field
 
 
 def _texture(rng: np.random.Generator) -> np.ndarray:

@@ -16,7 +16,7 @@ from rigkit.pipeline.distortion import _cluster_covariance, corner_shift_px, fit
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import pseudo_rectify
-from rigkit.synth.render import shimmer_field
+from rigkit.synth.shimmer import shimmer_field
 
 W, H = 1600, 1200
 F = focal_from_fov(W, 5.0)

@@ -9,7 +9,7 @@ import pytest
 
 from rigkit.errors import PipelineError
 from rigkit.pipeline.shimmer import burst_shimmer, measure_shimmer
-from rigkit.synth.render import shimmer_field
+from rigkit.synth.shimmer import shimmer_field
 
 SIZE = (1024, 1280)  # (H, W)
 CORR_PX = 24.0

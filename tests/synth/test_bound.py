@@ -23,7 +23,7 @@ from rigkit.synth.bound import (
     shimmer_covariance,
 )
 from rigkit.synth.evaluate import visible_in_right
-from rigkit.synth.render import shimmer_field
+from rigkit.synth.shimmer import shimmer_field
 
 RMS, CORR = 0.3, 6.0
 
@@ -128,6 +128,12 @@ def test_predicted_spread_is_the_fits_spread_over_shimmer_draws(shimmered) -> No
 def test_a_scene_without_shimmer_has_no_bound(truth, result) -> None:
     with pytest.raises(InputError, match="no heat shimmer"):
         offset_bound(truth, result, np.zeros((10, 2)))
+
+
+def test_other_shimmer_spectra_have_no_bound(truth, result) -> None:
+    params = replace(truth.params, shimmer_px=0.3, shimmer_spectrum="vonkarman")
+    with pytest.raises(InputError, match="gaussian shimmer only, not of vonkarman"):
+        offset_bound(replace(truth, params=params), result, np.zeros((10, 2)))
 
 
 def test_a_grid_coarser_than_the_image_is_refused(shimmered) -> None:

@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from rigkit.errors import InputError
-from rigkit.synth.evaluate import depth_metrics, evaluate_scenes, format_table, visible_in_right
+from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
+from rigkit.synth.evaluate import (
+    ChangeMetrics,
+    change_metrics,
+    depth_metrics,
+    evaluate_scenes,
+    format_table,
+    visible_in_right,
+    write_csv,
+)
 
 
 @pytest.fixture(scope="module")
@@ -52,3 +63,57 @@ def test_wrong_shape_is_an_input_error(truth, judged) -> None:
     gt = truth.depth("left")
     with pytest.raises(InputError, match="ground truth is"):
         depth_metrics(gt[:-1], gt, judged)
+
+
+def test_change_metrics_split_static_moved_and_shadowed() -> None:
+    truth = np.full((10, 10), 300.0)
+    judged = np.ones((10, 10), bool)
+    judged[:, 9] = False  # the right view does not see the last column
+    moved = np.zeros((10, 10), bool)
+    moved[:2] = True  # 20 moved pixels, 2 of them not judged: all 20 count
+    shadow = np.zeros((10, 10), bool)
+    shadow[8] = True  # 9 judged pixels under a changed shadow (10 minus the last column)
+    est = truth * 1.002  # static pixels 0.2 % long
+    est[0, :10] = truth[0, :10] * 1.05  # 10 moved pixels given a depth 5 % off ...
+    est[1, :5] = np.nan  # ... 5 given none, 5 right
+    est[8, :3] = truth[8, :3] * 1.02  # 3 shadowed pixels 2 % off
+    c = change_metrics(est, truth, judged, moved, shadow)
+    static = judged & ~moved & ~shadow  # rows 2-7 and 9, columns 0-8
+    assert c.static_share == pytest.approx(static.sum() / judged.sum())
+    assert c.static_under_1 == 1.0 and c.static_bias == pytest.approx(0.002)
+    assert c.moved_share == pytest.approx(0.2)
+    assert c.moved_density == pytest.approx(15 / 20) and c.moved_wrong == pytest.approx(10 / 20)
+    assert c.shadow_share == pytest.approx(9 / judged.sum())
+    assert c.shadow_under_1 == pytest.approx(6 / 9)
+
+
+def test_table_and_csv_grow_only_for_scenes_where_the_world_moves(tmp_path) -> None:
+    still = depth_metrics(np.full((4, 4), 300.0), np.full((4, 4), 300.0), np.ones((4, 4), bool),
+                          "still")
+    plain_text = format_table([still])
+    assert "where the world moves" not in plain_text
+    write_csv([still], tmp_path / "a.csv")
+    header = (tmp_path / "a.csv").read_text().splitlines()[0]
+    assert header == ("scene,judged_pixels,density,under_0_5,under_1,under_2,under_3,"
+                      "median_bias,failed,reason,false_depth")
+    moving = replace(still, scene="moving", changes=ChangeMetrics(
+        0.9, 0.99, 0.001, 0.05, 0.8, 0.3, 0.02, 0.97))
+    text = format_table([still, moving])
+    first = format_table([still, replace(moving, changes=None)]).split("\nfailures")[0]
+    assert text.startswith(first)  # the first table as it was
+    assert "where the world moves" in text and "30.00" in text
+    write_csv([still, moving], tmp_path / "b.csv")
+    rows = (tmp_path / "b.csv").read_text().splitlines()
+    assert rows[0].startswith(header + ",static_share,")
+    assert rows[1].split(",")[-1] == "nan" and rows[2].split(",")[-1] == "0.97"
+
+
+def test_a_moving_scene_is_scored_by_what_changed(tmp_path) -> None:
+    params = SynthParams(width=320, height=240, n_movers=8, n_shadows=1)
+    write_scene(generate_scene(params, 3), tmp_path / "moving")
+    truth = load_scene(tmp_path / "moving")
+    np.save(tmp_path / "moving.npy", truth.depth("left"))  # a perfect estimate
+    (row,) = evaluate_scenes([tmp_path / "moving"], tmp_path)
+    c = row.changes
+    assert c is not None and 0 < c.moved_share < 0.5 and 0 < c.static_share < 1
+    assert c.static_under_1 == 1.0 and c.moved_density == 1.0 and c.moved_wrong == 0.0

@@ -11,7 +11,8 @@ import pytest
 from rigkit.geometry import Camera, distort, intrinsics, undistort
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene
 from rigkit.synth.evaluate import depth_metrics
-from rigkit.synth.render import render_view, shimmer_field
+from rigkit.synth.render import render_view
+from rigkit.synth.shimmer import shimmer_field
 
 TINY = SynthParams(width=320, height=240, n_boxes=2, n_spheres=1)
 
