@@ -45,6 +45,7 @@ from rigkit.capture.checks import UNCHECKED, check_exif
 from rigkit.capture.picture import CLIP_LEVEL
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
+from rigkit.core.files import file_sha256
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, implied_range_m, roles_problem
 from rigkit.pipeline.features import match_views
@@ -61,6 +62,9 @@ MIN_PARALLAX_PX = 0.4
 the right view to count as taken from another place: a camera turned on its tripod
 left ~0.2 px (tracking and sensor noise) in synthetic tests, a 2 m move at 300 m 0.75 px
 at 384 px wide and far more at full size."""
+MAX_BURST_SCALE_CHANGE = 0.002
+"""The frames of one position's burst are one view: a scale change beyond this (the
+back position's magnification is 1 - C_lb / z, 0.007 at 300 m) is another position."""
 MAX_ROLL_DEG = 10.0
 """Largest plausible roll between two positions; more means a camera turned on its side."""
 MAX_BLOWN = 0.01
@@ -96,12 +100,40 @@ def frames_at(session: Session, position: str) -> tuple[Frame, ...]:
     return session.bursts.get(position, ())
 
 
-def add_position_frame(session: Session, position: str, path: Path) -> Session:
+def burst_misfit(session: Session, position: str, path: Path) -> str | None:
+    """Why the frame at ``path`` does not belong to ``position``'s burst, or None: the
+    frames of a burst show one view, shifted a little by the tripod's sway, while a
+    frame from another position shows the scene with parallax (the right one) or
+    magnified (the back one). None too for the first frame of a position, and for a
+    file that cannot be read (adding it says why)."""
+    frames = frames_at(session, position)
+    if not frames:
+        return None
+    try:
+        cache = session.path / DERIVED_DIR
+        grey = load_linear_grey(path, cache, file_sha256(path), session.rig().image_size)
+        new = _reduced(to_pipeline([grey], linear=is_raw(path))[0])[0]
+        first, reduction = check_image(session, frames[0])
+        view = map_views(first, new, reduction)
+    except RigkitError:
+        return None
+    if (view.parallax_px < MIN_PARALLAX_PX * reduction
+            and abs(view.scale - 1.0) <= MAX_BURST_SCALE_CHANGE):
+        return None
+    return (f"{path.name} does not match the {position} burst (parallax "
+            f"{view.parallax_px:.1f} px, scale {view.scale:.4f}): it looks taken from "
+            "another position")
+
+
+def add_position_frame(session: Session, position: str, path: Path,
+                       retake: bool | None = None) -> Session:
     """Record ``path`` as a frame of ``position`` (copied into ``raw/``, never moved): its
-    first, one more of its burst, or - when the position's newest frame failed its
-    on-site checks - the retake that replaces the position's frames (their files stay
-    in ``raw/``)."""
-    retake = bool(frames_at(session, position)) and not all_ok(onsite_checks(session, position))
+    first, one more of its burst, or the retake that replaces the position's frames
+    (their files stay in ``raw/``): when ``retake`` says so or, left None, when the
+    position's newest frame failed its on-site checks."""
+    if retake is None:
+        retake = bool(frames_at(session, position)) and not all_ok(
+            onsite_checks(session, position))
     return add_frame(session, position, path, burst=not retake, replace_existing=retake)
 
 
@@ -142,7 +174,11 @@ def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX
                 ) -> tuple[np.ndarray, float]:
     """A frame as (h, w) float32 grey in [0, 255], its longest side at most ``side_px``,
     and the reduction factor (full-resolution px per check px, >= 1)."""
-    image = full_image(session, frame)
+    return _reduced(full_image(session, frame), side_px)
+
+
+def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarray, float]:
+    """``image`` shrunk so its longest side is at most ``side_px``, and the factor."""
     reduction = max(1.0, max(image.shape) / side_px)
     if reduction > 1.0:
         size = (round(image.shape[1] / reduction), round(image.shape[0] / reduction))

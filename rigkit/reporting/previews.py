@@ -19,6 +19,12 @@ def colorize(values: np.ndarray, lo: float, hi: float, label: str) -> np.ndarray
     """(H, W) float map -> BGR uint8 image (turbo colours, NaN black) with a scale bar.
 
     The image is shrunk to at most PREVIEW_WIDTH px wide (area average, NaN-aware)."""
+    return _with_scale_bar(colour_map(values, lo, hi), lo, hi, label)
+
+
+def colour_map(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """(H, W) float map -> BGR uint8 image, turbo colours from ``lo`` to ``hi``, NaN
+    black, shrunk to at most PREVIEW_WIDTH px wide (area average, NaN-aware)."""
     scale = min(1.0, PREVIEW_WIDTH / values.shape[1])
     finite = np.isfinite(values)
     if scale < 1.0:
@@ -34,7 +40,15 @@ def colorize(values: np.ndarray, lo: float, hi: float, label: str) -> np.ndarray
     norm = np.clip((np.nan_to_num(values, nan=lo) - lo) / span, 0, 1)
     img = cv2.applyColorMap((norm * 255).astype(np.uint8), cv2.COLORMAP_TURBO)
     img[~finite] = 0
-    return _with_scale_bar(img, lo, hi, label)
+    return img
+
+
+def scale_colours(steps: int) -> list[tuple[int, int, int]]:
+    """The colours of :func:`colour_map` at ``steps`` evenly spaced values from its low
+    end to its high end, as (R, G, B): for a scale bar drawn in text."""
+    ramp = np.linspace(0, 255, steps).astype(np.uint8).reshape(1, -1)
+    bgr = cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO)[0]
+    return [(int(b[2]), int(b[1]), int(b[0])) for b in bgr]
 
 
 def _with_scale_bar(img: np.ndarray, lo: float, hi: float, label: str) -> np.ndarray:

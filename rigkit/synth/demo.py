@@ -21,8 +21,12 @@ from rigkit.core.yamlfile import dump_yaml
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.session import rig_for_scene
 
-DEMO_SIZE = (512, 384)
-"""Demo frame size (width, height), px: small, so the checks and processing take seconds."""
+DEMO_SIZE = (1024, 768)
+"""Demo frame size (width, height), px: small, so the checks and processing take seconds,
+yet large enough that its rig's budget at ``DEMO_RANGE_M`` meets the 1 % goal."""
+DEMO_RANGE_M = 250.0
+"""The demo scene's distance, m: there the rig's 2-sigma depth error is under 1 %
+(``rigkit rig check`` on the demo's rig.yaml)."""
 DEMO_SEED = 7
 LASER_NOISE_M = 0.05
 SHOT_PIECES = 4
@@ -96,7 +100,8 @@ def prepare_demo(root: Path, seed: int = DEMO_SEED, size: tuple[int, int] = DEMO
                  shot_s: float = 0.8) -> Demo:
     """Render the demo scene under ``root`` and write its rig profile; returns the folders."""
     demo = Demo(root, seed, shot_s)
-    scene = generate_scene(SynthParams(width=size[0], height=size[1]), seed)
+    scene = generate_scene(SynthParams(width=size[0], height=size[1], distance_m=DEMO_RANGE_M),
+                           seed)
     write_scene(scene, demo.scene)
     demo.card.mkdir(parents=True, exist_ok=True)
     demo.capture.mkdir(parents=True, exist_ok=True)

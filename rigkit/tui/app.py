@@ -22,6 +22,7 @@ from textual.theme import Theme
 from rigkit.capture import Session, load_session
 from rigkit.capture.field import (
     add_position_frame,
+    burst_misfit,
     check_image,
     frames_at,
     next_step,
@@ -34,6 +35,7 @@ from rigkit.tui.messages import (
     CheckPosition,
     FrameAdded,
     FrameChecked,
+    FrameHeld,
     FrameRefused,
     Goto,
     IngestFile,
@@ -177,19 +179,25 @@ class FieldApp(App[None]):
         return screen.position if isinstance(screen, PositionScreen) else None
 
     def on_ingest_file(self, message: IngestFile) -> None:
-        self.ingest_file(message.path, message.position)
+        self.ingest_file(message.path, message.position, message.retake)
 
     @work(thread=True, group="ingest")
-    def ingest_file(self, path: Path, position: str) -> None:
-        """A file named by hand (the path entry), ingested like an arrival."""
-        self.ingest(path, position)
+    def ingest_file(self, path: Path, position: str, retake: bool = False) -> None:
+        """A file named by hand (the path entry) or placed by the operator, ingested
+        like an arrival."""
+        self.ingest(path, position, retake)
 
-    def ingest(self, path: Path, position: str) -> None:
+    def ingest(self, path: Path, position: str, retake: bool = False) -> None:
         """Copy ``path`` into the session for ``position``, then run its on-site checks
-        (blocking; called from worker threads)."""
+        (blocking; called from worker threads). A frame that does not match the
+        position's burst is held back with a question instead (unless ``retake``)."""
         assert self.session is not None
+        misfit = None if retake else burst_misfit(self.session, position, path)
+        if misfit is not None:
+            self.tell(FrameHeld(position, path, misfit))
+            return
         try:
-            session = add_position_frame(self.session, position, path)
+            session = add_position_frame(self.session, position, path, retake or None)
         except RigkitError as exc:
             self.tell(FrameRefused(position, str(exc)))
             return

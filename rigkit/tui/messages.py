@@ -46,11 +46,13 @@ class SessionChanged(Message):
 
 
 class IngestFile(Message):
-    """Add the file at ``path`` to ``position``, as if it had arrived in the card folder."""
+    """Add the file at ``path`` to ``position``, as if it had arrived in the card folder;
+    ``retake``: in place of the position's frames, and without asking whether it fits
+    them."""
 
-    def __init__(self, path: Path, position: str) -> None:
+    def __init__(self, path: Path, position: str, retake: bool = False) -> None:
         super().__init__()
-        self.path, self.position = path, position
+        self.path, self.position, self.retake = path, position, retake
 
 
 class CheckPosition(Message):
@@ -70,6 +72,15 @@ class FrameAdded(Message):
     def __init__(self, position: str, name: str) -> None:
         super().__init__()
         self.position, self.name = position, name
+
+
+class FrameHeld(Message):
+    """The file at ``path`` arrived for ``position`` but does not match its burst
+    (``reason``): it is held back, not added, until the operator says where it goes."""
+
+    def __init__(self, position: str, path: Path, reason: str) -> None:
+        super().__init__()
+        self.position, self.path, self.reason = position, path, reason
 
 
 class FrameRefused(Message):

@@ -19,6 +19,20 @@ HAS_GRAPHICS = AutoRenderable not in (HalfcellRenderable, UnicodeRenderable)
 """Whether textual-image found a graphics protocol in this terminal."""
 
 
+PREVIEW_FRACTION = 1 / 3
+"""The share of each side of a frame the preview shows, around its centre."""
+
+
+def central(image: np.ndarray, fraction: float = PREVIEW_FRACTION) -> np.ndarray:
+    """The middle ``fraction`` of ``image`` along each side. A whole frame in the ~36
+    columns an 80x24 terminal leaves is some 30 px per cell, which shows texture as
+    noise; its middle third is a few px per cell, where the operator sees the scene."""
+    height, width = image.shape[:2]
+    h, w = max(1, round(height * fraction)), max(1, round(width * fraction))
+    top, left = (height - h) // 2, (width - w) // 2
+    return image[top : top + h, left : left + w]
+
+
 def preview_widget(image: np.ndarray, graphics: bool = True) -> Widget:
     """A widget showing ``image`` ((H, W) grey or (H, W, 3) RGB, values 0-255)."""
     pixels = stretch(image) if image.ndim == 2 else np.clip(image, 0, 255).astype(np.uint8)

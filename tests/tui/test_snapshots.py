@@ -114,7 +114,6 @@ def test_results_of_a_run(snap_compare, capture: Path) -> None:
         session = add_target(session, name, (u, v),
                              readings=[LaserReading(300.0, "2026-04-12T08:01:12Z", "manual")])
     (path / "results").mkdir()
-    depth = cv2.applyColorMap(drawn_card(), cv2.COLORMAP_VIRIDIS)
-    cv2.imwrite(str(path / "results" / "depth.png"), depth)
+    np.save(path / "results" / "depth.npy", 250.0 + drawn_card().astype(np.float32) / 2.5)
     append_rows(path / LOG_NAME, [_row("T1", 301.2, 0.8), _row("T2", 288.0, -4.6)])
     assert snap_compare(app_for(capture, path), terminal_size=SIZE)

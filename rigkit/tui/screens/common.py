@@ -65,7 +65,7 @@ class StepScreen(Screen[None]):
 
     step = ""
     BINDINGS = [
-        Binding("n", "next", "next step"),
+        Binding("n", "next", "next"),
         Binding("b", "back", "back"),
     ]
 

@@ -12,11 +12,27 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import Footer, Header, Input, Static
 
 from rigkit.capture import Session
+from rigkit.capture.actions import remove_frame
 from rigkit.capture.field import frames_at
 from rigkit.rig.findings import Finding
-from rigkit.tui.messages import CheckPosition, FrameAdded, FrameChecked, FrameRefused, IngestFile
-from rigkit.tui.previews import preview_widget
-from rigkit.tui.screens.common import StepScreen, check_lines, escape, host, session_of
+from rigkit.tui.messages import (
+    CheckPosition,
+    FrameAdded,
+    FrameChecked,
+    FrameHeld,
+    FrameRefused,
+    IngestFile,
+    SessionChanged,
+)
+from rigkit.tui.previews import central, preview_widget
+from rigkit.tui.screens.common import (
+    StepScreen,
+    check_lines,
+    escape,
+    host,
+    session_of,
+    step_after,
+)
 
 CHECKLISTS = {
     "left": (
@@ -42,13 +58,20 @@ CHECKLISTS = {
 class PositionScreen(StepScreen):
     """One camera position: its checklist, the frames as they arrive, their checks."""
 
-    BINDINGS = [Binding("o", "open_file", "add file")]
+    BINDINGS = [
+        Binding("o", "open_file", "add file"),
+        Binding("x", "drop_frame", "drop frame"),
+        Binding("a", "place_here", "retake with it", show=False),
+    ]
 
     def __init__(self, position: str) -> None:
         super().__init__()
         self.position = position
         self.step = position
         self._shown = ""  # the newest frame's checks, as markup
+        self.failed = ""  # the first failed check of the newest frame, if any
+        self.held: Path | None = None  # a frame that arrived but does not fit the burst
+        self.confirm = False  # n pressed once after a failed check
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -105,6 +128,19 @@ class PositionScreen(StepScreen):
         if message.position == self.position:
             self.show_checks(message.checks, message.image)
 
+    def on_frame_held(self, message: FrameHeld) -> None:
+        """A frame that does not fit this position's burst: ask where it goes."""
+        if message.position != self.position:
+            return
+        self.held = message.path
+        after = step_after(self.position, +1)
+        where = f"n: add it to the {after} position" if after in CHECKLISTS else \
+            "n: go on without it"
+        self.query_one("#checks", Static).update(
+            f"[b $warning]? {escape(message.reason)}[/]\n"
+            f"{where} · a: start the {self.position} position again with it · Esc: leave "
+            f"it on the card\n{self._shown}")
+
     def show_added(self, name: str) -> None:
         self.query_one("#checks", Static).update(f"frame {name}: checking ...")
 
@@ -112,12 +148,15 @@ class PositionScreen(StepScreen):
         """The newest frame's checks, and its preview."""
         frames = frames_at(session_of(self), self.position)
         burst = f" ({len(frames)} frames)" if len(frames) > 1 else ""
-        hint = "\n[b]n[/]: next step" if all(c.ok for c in checks) else ""
+        self.failed = next((c.message for c in checks if not c.ok), "")
+        self.confirm = False
+        hint = "" if self.failed else "\n[b]n[/]: next step"
         self._shown = f"frame {Path(frames[-1].file).name}{burst}\n{check_lines(checks)}{hint}"
         self.query_one("#checks", Static).update(self._shown)
         preview = self.query_one("#preview", Vertical)
         preview.remove_children()
-        preview.mount(preview_widget(image, host(self).config.graphics))
+        preview.border_title = "the frame's centre"
+        preview.mount(preview_widget(central(image), host(self).config.graphics))
 
     def action_open_file(self) -> None:
         entry = self.query_one("#path", Input)
@@ -125,12 +164,51 @@ class PositionScreen(StepScreen):
         entry.focus()
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        self.keyescape()
+        self.key_escape()
         if event.value.strip():
             self.post_message(IngestFile(Path(event.value.strip()).expanduser(), self.position))
         event.input.value = ""
 
-    def keyescape(self) -> None:
-        """Close the entry box; keys go to the screen again."""
+    def key_escape(self) -> None:
+        """Close the entry box (keys go to the screen again); forget a held frame."""
         self.query_one("#path", Input).display = False
         self.set_focus(None)
+        if self.held is not None:
+            self.held = None
+            self.query_one("#checks", Static).update(self._shown)
+
+    def action_place_here(self) -> None:
+        """Start this position again with the held frame (the earlier ones stay in raw/)."""
+        if self.held is not None:
+            self.post_message(IngestFile(self.held, self.position, retake=True))
+            self.held = None
+
+    def action_drop_frame(self) -> None:
+        """Take the newest frame out of the position (its file stays in raw/)."""
+        frames = frames_at(session_of(self), self.position)
+        if not frames:
+            return
+        session = remove_frame(session_of(self), self.position)
+        self.post_message(SessionChanged(session))
+        self.notify(f"{Path(frames[-1].file).name} taken out of the {self.position} "
+                    "position (the file stays in raw/)")
+        if frames_at(session, self.position):
+            self._recheck(session)
+        else:
+            self._shown = ""
+            self.query_one("#checks", Static).update(self._waiting())
+
+    def action_next(self) -> None:
+        """Next step; a held frame goes along to the next position. After a failed check
+        only on a second ``n``: moving on keeps a frame that will fail processing."""
+        after = step_after(self.position, +1)
+        if self.held is not None and after in CHECKLISTS:
+            self.post_message(IngestFile(self.held, after))
+            self.held = None
+        elif self.failed and not self.confirm:
+            self.confirm = True
+            self.notify(f"the {self.position} frame failed a check ({self.failed}): take it "
+                        "again, or press n again to go on anyway", severity="warning",
+                        timeout=8)
+            return
+        super().action_next()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 
 import cv2
+import numpy as np
+from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -16,6 +18,7 @@ from rigkit.batch import new_run_id, process_session
 from rigkit.capture import RESULTS_DIR, read_rows
 from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError, environment_message
+from rigkit.reporting.previews import colour_map, depth_range, scale_colours
 from rigkit.reporting.verdict import judge, run_shortfalls
 from rigkit.tui.screens.common import StepScreen, escape, session_of
 from rigkit.tui.widgets import PixelView
@@ -48,11 +51,11 @@ class ProcessScreen(StepScreen):
 
     def on_mount(self) -> None:
         table = self.query_one(DataTable)
-        table.add_columns("target", "laser m", "depth m", "error", "ok")
+        table.add_columns("target", "laser m", "depth m", "error", "≤1 %")
         session = session_of(self)
         rows = latest_run(read_rows(session.path / "comparisons.csv")) \
             if (session.path / "comparisons.csv").is_file() else []
-        if self.resume and rows and (session.path / RESULTS_DIR / "depth.png").is_file():
+        if self.resume and rows and (session.path / RESULTS_DIR / "depth.npy").is_file():
             self._show_results(rows)
             self.query_one("#stage", Static).update("latest run shown; r: process again")
         else:
@@ -112,11 +115,24 @@ class ProcessScreen(StepScreen):
         advice += "".join(f"\n[$warning]{escape(note)}[/]" for note in shortfalls)
         self.query_one("#verdict", Static).update(
             f"[b {colour}]{escape(verdict.headline)}[/]{advice}")
-        depth = cv2.imread(str(session.path / RESULTS_DIR / "depth.png"), cv2.IMREAD_COLOR)
         box = self.query_one("#depth", Vertical)
         box.remove_children()
-        if depth is not None:
-            box.mount(PixelView(cv2.cvtColor(depth, cv2.COLOR_BGR2RGB)))
+        try:
+            depth = np.load(session.path / RESULTS_DIR / "depth.npy")
+        except (OSError, ValueError):
+            return
+        lo, hi = depth_range(depth)
+        image = cv2.cvtColor(colour_map(depth, lo, hi), cv2.COLOR_BGR2RGB)
+        box.mount(PixelView(image), Static(_colour_bar(lo, hi), id="scale"))
+
+
+def _colour_bar(lo: float, hi: float, steps: int = 12) -> Text:
+    """The depth preview's scale in text: ``289 m ████████ 312 m  depth z``."""
+    bar = Text(f"{lo:.0f} m ")
+    for rgb in scale_colours(steps):
+        bar.append("█", style=f"rgb({rgb[0]},{rgb[1]},{rgb[2]})")
+    bar.append(f" {hi:.0f} m  depth z")
+    return bar
 
 
 def _num(value: float) -> str:

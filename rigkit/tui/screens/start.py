@@ -49,7 +49,7 @@ class StartScreen(Screen[None]):
             table.add_row(session.name, next_step(session), str(frames),
                           str(len(session.targets)), key=str(folder))
 
-    def keyescape(self) -> None:
+    def key_escape(self) -> None:
         """Leave the new-session box: keys (q included) go to the list again."""
         self.query_one(DataTable).focus()
 

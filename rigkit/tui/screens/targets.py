@@ -3,6 +3,8 @@ the rangefinder (or are typed in) and are saved to the session as they come."""
 
 from __future__ import annotations
 
+import statistics
+
 import numpy as np
 from textual import work
 from textual.app import ComposeResult
@@ -12,7 +14,9 @@ from textual.widgets import Footer, Header, Input, Static
 from textual.worker import get_current_worker
 
 from rigkit.capture import LaserReading, Session, Target, add_target, utc_now
+from rigkit.capture.actions import remove_reading, remove_target
 from rigkit.capture.field import check_image, frames_at, reading_from_device
+from rigkit.capture.session import stray_readings
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow
 from rigkit.rangefinder.ranging import parse_typed_range
@@ -26,13 +30,16 @@ class TargetsScreen(StepScreen):
 
     step = "targets"
     BINDINGS = [
-        Binding("enter", "mark", "mark target"),
-        Binding("plus,equals_sign", "zoom(1)", "zoom in", key_display="+"),
-        Binding("minus", "zoom(-1)", "zoom out", key_display="-"),
-        Binding("m", "manual", "type range"),
+        Binding("left", "move(-1, 0)", "aim", key_display="←↑↓→"),
+        Binding("enter", "mark", "mark"),
+        Binding("plus,equals_sign", "zoom(1)", "zoom", key_display="+-"),
+        Binding("minus", "zoom(-1)", show=False),
+        Binding("t", "select", "select"),
+        Binding("m", "manual", "range"),
+        Binding("x", "drop_reading", "drop"),
+        Binding("d", "drop_target", show=False),
         Binding("up", "move(0, -1)", show=False),
         Binding("down", "move(0, 1)", show=False),
-        Binding("left", "move(-1, 0)", show=False),
         Binding("right", "move(1, 0)", show=False),
         Binding("shift+up", "move(0, -8)", show=False),
         Binding("shift+down", "move(0, 8)", show=False),
@@ -48,6 +55,8 @@ class TargetsScreen(StepScreen):
         self.reduction = 1.0  # full-resolution px per px of the shown left view
         self.protocol = "trupulse"
         self.readings: list[str] = []  # the newest first, as shown
+        self.selected = session.targets[-1].name if session.targets else None
+        self.confirm = ""  # the action a second key press confirms ("d T2", "n")
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -92,18 +101,21 @@ class TargetsScreen(StepScreen):
         self._show_targets()
 
     def _current(self) -> Target | None:
-        """The newest target: readings go to it."""
-        targets = self.session.targets
-        return targets[-1] if targets else None
+        """The selected target (``t`` selects the next): readings and actions go to it."""
+        return next((t for t in self.session.targets if t.name == self.selected), None)
 
     def _show_targets(self) -> None:
         session = self.session
-        lines = ["[b]targets[/] (Enter marks one at the cursor)"]
+        lines = ["[b]targets[/] (Enter: mark at the cursor; t: select; m: type its range; "
+                 "x: drop its newest reading; d: delete it)"]
         for target in session.targets:
             ranges = [r.slope_distance_m for r in target.readings]
-            mean = f"{sum(ranges) / len(ranges):.2f} m" if ranges else "no reading"
-            lines.append(f"{target.name} ({target.pixel[0]:.0f}, {target.pixel[1]:.0f}) "
-                         f"{len(ranges)}x {mean}")
+            middle = f"{statistics.median(ranges):.2f} m" if ranges else "no reading"
+            strays = len(stray_readings(target))
+            note = f" [b $warning]{strays} stray[/]" if strays else ""
+            mark = "[b $accent]›[/]" if target.name == self.selected else " "
+            lines.append(f"{mark}{target.name} ({target.pixel[0]:.0f}, {target.pixel[1]:.0f}) "
+                         f"{len(ranges)}x {middle}{note}")
         view = self.query_one(PixelView)
         if view.cursor is not None:
             u, v = self._full(view.cursor)
@@ -135,23 +147,73 @@ class TargetsScreen(StepScreen):
         name = next(f"T{n}" for n in range(1, len(taken) + 2) if f"T{n}" not in taken)
         pixel = self._full(view.cursor)
         self._changed(add_target(session, name, pixel))
+        self.selected = name
         self._show_targets()
         demo = host(self).config.demo
         if demo is not None:
             self._listen(demo.laser_url(pixel), self.DEMO_SHOTS)
 
+    def action_select(self) -> None:
+        names = [t.name for t in self.session.targets]
+        if names:
+            at = names.index(self.selected) if self.selected in names else -1
+            self.selected = names[(at + 1) % len(names)]
+            self._show_targets()
+
     def action_manual(self) -> None:
+        target = self._current()
+        if target is None:
+            self.notify("mark a target first (Enter at the cursor)", severity="warning")
+            return
         entry = self.query_one("#range", Input)
+        entry.placeholder = f"range to {target.name} in metres, then Enter (Esc: cancel)"
         entry.display = True
         entry.focus()
 
-    def keyescape(self) -> None:
+    def action_drop_reading(self) -> None:
+        """Remove the selected target's newest reading (the session keeps a record)."""
+        target = self._current()
+        if target is None or not target.readings:
+            self.notify("the selected target has no reading to drop", severity="warning")
+            return
+        gone = target.readings[-1].slope_distance_m
+        self._changed(remove_reading(self.session, target.name, len(target.readings)))
+        self.notify(f"dropped {target.name}'s reading {len(target.readings)} ({gone:.2f} m)")
+        self._show_targets()
+
+    def action_drop_target(self) -> None:
+        """Remove the selected target, once ``d`` is pressed a second time."""
+        target = self._current()
+        if target is None:
+            return
+        if self.confirm != f"d {target.name}":
+            self.confirm = f"d {target.name}"
+            self.notify(f"press d again to drop {target.name} and its "
+                        f"{len(target.readings)} reading(s)", severity="warning")
+            return
+        self.confirm = ""
+        self._changed(remove_target(self.session, target.name))
+        self.selected = self.session.targets[-1].name if self.session.targets else None
+        self._show_targets()
+
+    def action_next(self) -> None:
+        """On to processing; without a single reading, only once ``n`` is pressed again."""
+        if any(t.readings for t in self.session.targets) or self.confirm == "n":
+            self.confirm = ""
+            super().action_next()
+            return
+        self.confirm = "n"
+        self.notify("no target has a laser reading, so nothing will check the depth: mark "
+                    "one (Enter) and fire at it, or press n again to go on without",
+                    severity="warning", timeout=8)
+
+    def key_escape(self) -> None:
         """Close the entry box; keys go to the screen again."""
         self.query_one("#range", Input).display = False
         self.set_focus(None)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        self.keyescape()
+        self.key_escape()
         text, event.input.value = event.value.strip(), ""
         try:
             value = parse_typed_range(text, self.session.rig())
