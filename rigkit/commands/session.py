@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from rigkit.commands.session_position import register_set_position
+
 EXAMPLE = """examples:
   rigkit session new capture/ridge-0412 --rig rigs/p1000-tripod.yaml --operator "A. Field"
   rigkit session add-frame capture/ridge-0412 --position left  DSCN0101.NRW
@@ -71,6 +73,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     target.add_argument("--timeout", type=float, default=30.0,
                         help="seconds to wait for each device reading")
     target.add_argument("--inclination", type=float, help="inclination of typed ranges, deg")
+    target.add_argument("--azimuth", type=float, help="azimuth of typed ranges, deg clockwise "
+                        "from north (true or magnetic: the rig profile's rangefinder.azimuth)")
     target.add_argument("--note", default="", help="what the target is")
     target.set_defaults(func=run_add_target)
 
@@ -78,6 +82,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     show.add_argument("session", type=Path)
     show.add_argument("--json", action="store_true", help="machine-readable output")
     show.set_defaults(func=run_show)
+    register_set_position(actions)
 
 
 def run_new(args: argparse.Namespace) -> int:
@@ -125,7 +130,7 @@ def run_add_target(args: argparse.Namespace) -> int:
     session = load_session(args.session)
     name = args.name or _next_name(session)
     if args.range_m is not None:
-        readings = _typed_readings(args.range_m, args.inclination)
+        readings = _typed_readings(args.range_m, args.inclination, args.azimuth)
     else:
         readings = _device_readings(session, args)
     session = add_target(session, name, tuple(args.pixel), window_px=args.window,
@@ -145,10 +150,14 @@ def _next_name(session: Any) -> str:
     return f"T{n}"
 
 
-def _typed_readings(ranges: list[float], inclination: float | None) -> list[Any]:
+def _typed_readings(ranges: list[float], inclination: float | None,
+                    azimuth: float | None = None) -> list[Any]:
     from rigkit.capture import LaserReading, utc_now
+    from rigkit.capture.tripod import check_direction
 
-    return [LaserReading(r, utc_now(), "manual", inclination) for r in ranges]
+    check_direction(azimuth, inclination)
+    return [LaserReading(r, utc_now(), "manual", inclination, azimuth_deg=azimuth)
+            for r in ranges]
 
 
 def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
@@ -184,6 +193,7 @@ def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
                 source=f"{protocol}:{url}",
                 inclination_deg=reading.inclination_deg,
                 raw=escape_bytes(reading.raw),
+                azimuth_deg=None if reading.azimuth_deg is None else reading.azimuth_deg % 360,
             ))
     return readings
 
@@ -228,6 +238,10 @@ def _show_text(session: Any) -> str:
     rig = session.rig()
     lines.append(f"  rig      {rig.name} (from {session.rig_reference}): f {rig.focal_px:.1f} "
                  f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
+    if session.tripod is not None:
+        t = session.tripod
+        lines.append(f"  tripod   {t.lat_deg:.7f}, {t.lon_deg:.7f}, {t.height_m:.2f} m "
+                     f"({t.source})")
     lines.append("frames")
     for position in POSITIONS:
         burst = session.bursts.get(position, ())

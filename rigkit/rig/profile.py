@@ -50,6 +50,8 @@ _MAX_OFFSET_M = 10.0
 _MAX_RANGE_M = 100_000.0
 _MAX_BAUD = 4_000_000
 _PROTOCOL_PATTERN = re.compile(r"[a-z0-9][a-z0-9_-]*")
+AZIMUTH_REFERENCES = ("true", "magnetic")
+"""What a rangefinder's azimuths may be measured from (profile key ``rangefinder.azimuth``)."""
 
 
 # --------------------------------------------------------------------------- the profile
@@ -75,12 +77,21 @@ class RangefinderSpec:
     ``protocol`` names how readings arrive (``manual``: typed in by hand);
     ``port``/``baud`` for a serial device; ``offset_m`` is (right, up, forward) of
     its aperture from the left camera's optical centre, in metres, None if unknown.
+    ``azimuth`` says what the readings' azimuths are measured from: ``true`` north
+    (the default) or ``magnetic`` north, which lies ``declination_deg`` degrees east
+    of true north (negative: west), so true = magnetic + declination.
     """
 
     protocol: str
     port: str | None
     baud: int | None
     offset_m: tuple[float, float, float] | None
+    azimuth: str = "true"
+    declination_deg: float = 0.0
+
+    def true_azimuth_deg(self, azimuth_deg: float) -> float:
+        """A reading's azimuth as degrees clockwise from true north, in [0, 360)."""
+        return (azimuth_deg + self.declination_deg) % 360.0
 
 
 @dataclass(frozen=True)
@@ -269,7 +280,8 @@ def _back_offset(value: Any, key: KeyPath) -> tuple[float, float]:
 
 
 def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
-    keys = key.mapping(value, required=("protocol",), optional=("port", "baud", "offset"))
+    keys = key.mapping(value, required=("protocol",),
+                       optional=("port", "baud", "offset", "azimuth", "declination_deg"))
     protocol = keys["protocol"]
     if not isinstance(protocol, str) or not _PROTOCOL_PATTERN.fullmatch(protocol):
         raise key.child("protocol").error(
@@ -285,7 +297,29 @@ def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
         port=port,
         baud=baud,
         offset_m=key.optional(keys, "offset", _rangefinder_offset),
+        **_azimuth_reference(keys, key),
     )
+
+
+def _azimuth_reference(keys: dict[str, Any], key: KeyPath) -> dict[str, Any]:
+    """``azimuth`` (true or magnetic) and the magnetic declination it needs."""
+    azimuth = keys.get("azimuth", "true")
+    if azimuth not in AZIMUTH_REFERENCES:
+        raise key.child("azimuth").error("must be 'true' or 'magnetic'", azimuth)
+    if "declination_deg" not in keys:
+        if azimuth == "magnetic":
+            raise key.child("declination_deg").error(
+                "missing: magnetic azimuths need the local declination (degrees east of "
+                "true north, negative west; e.g. from NOAA's declination calculator)")
+        return {"azimuth": azimuth}
+    declination = key.child("declination_deg").number(keys["declination_deg"], "degrees")
+    if azimuth != "magnetic":
+        raise key.child("declination_deg").error("applies to 'azimuth: magnetic' only",
+                                                 declination)
+    if not -180.0 <= declination <= 180.0:
+        raise key.child("declination_deg").error("must be between -180 and 180 degrees",
+                                                 declination)
+    return {"azimuth": azimuth, "declination_deg": declination}
 
 
 def _rangefinder_offset(value: Any, key: KeyPath) -> tuple[float, float, float]:
@@ -365,4 +399,7 @@ def _rangefinder_to_dict(spec: RangefinderSpec) -> dict[str, Any]:
     if spec.offset_m is not None:
         right, up, forward = spec.offset_m
         data["offset"] = {"right_m": right, "up_m": up, "forward_m": forward}
+    if spec.azimuth != "true":
+        data["azimuth"] = spec.azimuth
+        data["declination_deg"] = spec.declination_deg
     return data
