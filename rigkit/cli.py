@@ -20,6 +20,7 @@ COMMANDS: tuple[str, ...] = (
     "session",
     "process",
     "report",
+    "export",
     "field",
     "experiments",
 )
