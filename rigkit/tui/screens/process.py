@@ -17,7 +17,8 @@ from rigkit.capture import RESULTS_DIR, read_rows
 from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError
 from rigkit.reporting.verdict import judge, offset_note
-from rigkit.tui.screens.common import StepScreen, escape, session_of
+from rigkit.tui.screens.common import escape, session_of
+from rigkit.tui.screens.exporting import ExportingScreen
 from rigkit.tui.widgets import PixelView
 
 
@@ -25,8 +26,9 @@ class Stopped(Exception):
     """Processing given up because its screen closed (raised from the progress report)."""
 
 
-class ProcessScreen(StepScreen):
-    """Run the depth pipeline; show the depth, the laser comparisons and the verdict."""
+class ProcessScreen(ExportingScreen):
+    """Run the depth pipeline; show the depth, the laser comparisons and the verdict;
+    ``e`` exports the results (:mod:`rigkit.tui.screens.exporting`)."""
 
     step = "process"
     BINDINGS = [Binding("r", "run", "process")]
