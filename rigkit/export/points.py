@@ -17,8 +17,10 @@ import numpy as np
 
 from rigkit.export.source import DepthMap
 
-CHUNK_POINTS = 1 << 20
-"""Grid points per chunk: about 40 MB of temporaries at a time, whatever the map's size."""
+CHUNK_POINTS = 1 << 19
+"""Grid points per chunk: under 100 MB of temporaries at a time, whatever the map's size
+(measured: 4608 x 3456 to PLY, LAS, LAZ and TIFF on the map peaks at 350 MB resident,
+of which 145 MB are the memory-mapped depth, sigma and grey)."""
 
 Transform = Callable[[np.ndarray], np.ndarray]
 """Camera-frame points (n, 3) float64 m -> output coordinates (n, 3) float64."""
@@ -56,10 +58,11 @@ def row_blocks(shape: tuple[int, int], step: int) -> Iterator[slice]:
 def count_points(depth: np.ndarray, step: int) -> int:
     """Points a map gives on the grid of every ``step``-th row and column: the finite,
     positive depths there."""
-    return sum(int(_valid(depth[rows, ::step]).sum()) for rows in row_blocks(depth.shape, step))
+    return sum(int(estimated(depth[rows, ::step]).sum()) for rows in row_blocks(depth.shape, step))
 
 
-def _valid(z: np.ndarray) -> np.ndarray:
+def estimated(z: np.ndarray) -> np.ndarray:
+    """Which depths (any shape, metres) are estimates: finite and positive."""
     with np.errstate(invalid="ignore"):
         return np.isfinite(z) & (z > 0)
 
@@ -73,7 +76,7 @@ def point_chunks(source: DepthMap, step: int, transform: Transform | None = None
     cols = np.arange(0, width, step)
     for rows in row_blocks((height, width), step):
         z = np.asarray(source.depth[rows, ::step], np.float64)
-        keep = _valid(z)
+        keep = estimated(z)
         vv, uu = np.meshgrid(np.arange(height)[rows], cols, indexing="ij")
         xyz = camera_rays(uu[keep], vv[keep], source.f, source.cx, source.cy) * z[keep, None]
         yield PointChunk(

@@ -24,7 +24,7 @@ from rigkit.errors import InputError
 from rigkit.export.georef import MAX_RESIDUAL_DEG, Georeference, georeference
 from rigkit.export.las import LasWriter, las_header
 from rigkit.export.ply import PlyWriter
-from rigkit.export.points import count_points, point_chunks
+from rigkit.export.points import count_points, estimated, point_chunks
 from rigkit.export.source import DepthMap, open_depth
 from rigkit.export.tiff import write_tiff
 
@@ -138,8 +138,7 @@ def _writer(path: Path, fmt: str, count: int, source: DepthMap,
 def _reach_m(source: DepthMap) -> float:
     """How far from the camera the farthest point can be, metres: the largest depth
     times the longest ray (the image corner's), plus a margin for the map's curvature."""
-    with np.errstate(invalid="ignore"):
-        deepest = float(np.nanmax(np.where(source.depth > 0, source.depth, np.nan)))
+    deepest = float(np.nanmax(source.depth))  # counted points exist: not all NaN
     width, height = source.size
     corner = math.hypot(max(source.cx, width - source.cx), max(source.cy, height - source.cy))
     return deepest * math.hypot(1.0, corner / source.f) * 1.01 + 10.0
@@ -151,7 +150,6 @@ def _map_frame(georef: Georeference) -> str:
 
 
 def _median(depth: np.ndarray) -> float:
-    with np.errstate(invalid="ignore"):
-        z = np.asarray(depth)
-        valid = z[np.isfinite(z) & (z > 0)]
-    return float(np.median(valid)) if valid.size else math.nan
+    """Median of the estimated depths, metres (one float32 copy of them)."""
+    valid = depth[estimated(depth)]
+    return float(np.median(valid, overwrite_input=True)) if valid.size else math.nan

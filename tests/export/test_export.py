@@ -81,7 +81,7 @@ def test_chunks_give_the_same_file_as_one_pass(
 ) -> None:
     session = new_session(tmp_path)
     export_path(session, tmp_path / "one", ["ply", "las"])
-    monkeypatch.setattr("rigkit.export.points.CHUNK_POINTS", 1000)  # 3 rows at a time
+    monkeypatch.setattr("rigkit.export.points.CHUNK_POINTS", 1000)  # 2 rows at a time
     export_path(session, tmp_path / "many", ["ply", "las"])
     for name in ("geo.ply", "geo.las"):
         assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "many" / name).read_bytes()
