@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="camera: the left camera's frame; map: the tripod's UTM zone "
                    "(refused if it cannot be solved); auto (default): map when the session "
                    "has a tripod position")
-    p.add_argument("--max-residual-deg", type=float, default=1.5,
+    p.add_argument("--max-residual-deg", type=float,
                    help="largest angle a target's laser direction may miss its pixel by "
                    "after the orientation fit (default 1.5)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
@@ -53,13 +53,18 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rigkit.core.progress import Progress
+    from rigkit.errors import InputError
     from rigkit.export import export_path, parse_formats
+    from rigkit.export.georef import MAX_RESIDUAL_DEG
 
     formats = parse_formats(args.format)
+    residual = MAX_RESIDUAL_DEG if args.max_residual_deg is None else args.max_residual_deg
+    if not 0 < residual <= 180:
+        raise InputError(f"--max-residual-deg {residual:g}: expected more than 0 degrees")
     task = args.source.name or str(args.source)
     with Progress("export", [task], quiet=args.quiet) as progress:
         done = export_path(args.source, args.out, formats, step=args.step, frame=args.frame,
-                           max_residual_deg=args.max_residual_deg,
+                           max_residual_deg=residual,
                            progress=lambda stage, f: progress.update(task, f, stage))
     for line in summary(done):
         print(line)

@@ -91,13 +91,17 @@ def export_depth(source: DepthMap, out: Path, formats: Sequence[str], *, step: i
     if count == 0 and set(formats) - {"tif"}:
         raise InputError(f"{source.name}: the depth map has no estimated pixel to export")
     names = [f"{source.name}.{fmt}" for fmt in formats]
-    with staged_files(out) as staging:
-        clouds = [fmt for fmt in formats if fmt != "tif"]
-        if clouds:
-            _write_clouds(source, staging, clouds, count, step, georef, report)
-        if "tif" in formats:
-            write_tiff(staging / f"{source.name}.tif", source,
-                       lambda fraction: report("writing tif", fraction))
+    try:
+        with staged_files(out) as staging:
+            clouds = [fmt for fmt in formats if fmt != "tif"]
+            if clouds:
+                _write_clouds(source, staging, clouds, count, step, georef, report)
+            if "tif" in formats:
+                write_tiff(staging / f"{source.name}.tif", source,
+                           lambda fraction: report("writing tif", fraction))
+    except OSError as exc:
+        raise InputError(f"{out}: cannot write the export ({exc.strerror or exc}); "
+                         "nothing was written") from None
     report("done", 1.0)
     return Exported(
         files=tuple(out / name for name in names), points=count,

@@ -15,6 +15,7 @@ import tifffile
 
 from rigkit.capture import load_session
 from rigkit.cli import main
+from rigkit.errors import InputError
 from rigkit.export import export_path
 from rigkit.rangefinder.ranging import profile_range_from_depth
 from tests.export.helpers import SIZE, depth_plane, new_session, read_ply
@@ -126,7 +127,7 @@ def test_a_failure_leaves_no_partial_output(
             raise OSError(28, "No space left on device")
 
     monkeypatch.setattr("rigkit.export.las.LasWriter.write", full_disk)
-    with pytest.raises(OSError):
+    with pytest.raises(InputError, match="cannot write the export .No space left on device."):
         export_path(session, out, ["ply", "las"])
     assert [p.name for p in out.iterdir()] == ["geo.ply"]  # no .las, no temporary folder
     assert (out / "geo.ply").read_bytes() == b"the previous export"
