@@ -193,7 +193,7 @@ def _device_readings(session: Any, args: argparse.Namespace) -> list[Any]:
                 source=f"{protocol}:{url}",
                 inclination_deg=reading.inclination_deg,
                 raw=escape_bytes(reading.raw),
-                azimuth_deg=None if reading.azimuth_deg is None else reading.azimuth_deg % 360,
+                azimuth_deg=reading.azimuth_deg,
             ))
     return readings
 

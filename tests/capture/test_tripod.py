@@ -93,6 +93,15 @@ def test_a_device_reading_keeps_its_azimuth(tmp_path: Path) -> None:
     assert (reading.azimuth_deg, reading.inclination_deg) == (212.4, -1.5)
 
 
+def test_the_field_tui_keeps_the_azimuth_and_360_is_north() -> None:
+    from rigkit.capture.field import reading_from_device
+    from rigkit.rangefinder import encode_trupulse_hv, parse_trupulse
+
+    frame = encode_trupulse_hv(300.0, inclination_deg=0.5, azimuth_deg=360.0).strip()
+    reading = reading_from_device(parse_trupulse(frame, 0.0), "trupulse:sim://")
+    assert (reading.azimuth_deg, reading.inclination_deg) == (0.0, 0.5)
+
+
 @pytest.mark.parametrize(("edit", "key"), [
     (lambda d: d["tripod"].update(lat_deg=91.0), "tripod: latitude 91"),
     (lambda d: d["tripod"].update(height_m="1012 m"), "tripod.height_m: must be a number"),
