@@ -23,6 +23,7 @@ COMMANDS: tuple[str, ...] = (
     "session",
     "process",
     "report",
+    "export",
     "field",
     "experiments",
 )

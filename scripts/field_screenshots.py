@@ -14,7 +14,7 @@ from pathlib import Path
 from rigkit.capture import create_session
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
-from rigkit.tui.demo import prepare_demo
+from rigkit.synth.demo import prepare_demo
 from rigkit.tui.screens import PositionScreen
 from rigkit.tui.widgets import PixelView
 

@@ -31,6 +31,7 @@ from rigkit.capture.frames import FrameFile, load_capture
 from rigkit.capture.session import POSITIONS
 from rigkit.pipeline import DepthResult, estimate_depth
 from rigkit.pipeline.shimmer import Shimmer
+from rigkit.rangefinder.ranging import left_camera_intrinsics
 from rigkit.rig.bursts import burst_warning
 from rigkit.rig.profile import RigProfile
 
@@ -61,6 +62,7 @@ class DepthRun:
         """The run as JSON-ready data (the body of ``depth.json``): frames, rig,
         warnings, shimmer, and the pipeline's diagnostics."""
         rig = self.profile.geometry()
+        f, cx, cy = left_camera_intrinsics(self.profile, (self.left.shape[1], self.left.shape[0]))
         return {
             "frames": {pos: [_frame_meta(f) for f in self.bursts[pos]] for pos in POSITIONS},
             "burst_length": self.burst_length,
@@ -68,12 +70,20 @@ class DepthRun:
             "rig": {"name": self.profile.name, "focal_px": rig.focal_px,
                     "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
                     "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},
+            # Back-projection of the depth map (rigkit export), pixel centres at integers.
+            "left_camera_px": {"f": f, "cx": cx, "cy": cy},
             "warnings": list(self.warnings),
             "shortfalls": list(self.shortfalls),
             "shimmer": {"frames": self.shimmer[1], **self.shimmer[0].as_dict()}
             if self.shimmer else None,
             **self.result.diagnostics(),
         }
+
+
+    def left_grey(self) -> np.ndarray:
+        """The left image the depth map lies on as (H, W) uint8 grey, for the point
+        colours of ``rigkit export`` (``grey.png`` beside the depth map)."""
+        return np.clip(np.rint(self.left), 0, 255).astype(np.uint8)
 
 
 def _frame_meta(frame: FrameFile) -> dict[str, str]:

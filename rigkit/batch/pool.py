@@ -42,13 +42,14 @@ def safe_process(
         message = "out of memory (process fewer sessions at once: --jobs 1)"
     except Exception as exc:  # a bug must not stop the batch; the trace goes to the log
         message = f"internal error ({type(exc).__name__}: {exc}); please report it"
-        _log_failure(path, run_id, message + "\n" + traceback.format_exc())
+        log_failure(path, run_id, message + "\n" + traceback.format_exc())
         return Outcome(path, False, message, time.perf_counter() - t0)
-    _log_failure(path, run_id, message)
+    log_failure(path, run_id, message)
     return Outcome(path, False, message, time.perf_counter() - t0)
 
 
-def _log_failure(path: Path, run_id: str, message: str) -> None:
+def log_failure(path: Path, run_id: str, message: str) -> None:
+    """Record a failed run in the session's ``history.log`` where it can be written."""
     if is_session(path):
         try:
             detail = message.strip().replace("\n", "\n    ")  # a trace stays indented
@@ -158,7 +159,7 @@ def _collect(future: Future[Outcome], path: Path, run_id: str) -> Outcome:
         return future.result()
     except Exception as exc:
         message = f"worker process died ({type(exc).__name__}); out of memory? try --jobs 1"
-        _log_failure(path, run_id, message)
+        log_failure(path, run_id, message)
         return Outcome(path, False, message, 0.0)
 
 

@@ -146,6 +146,7 @@ def reading_from_device(reading: Reading, source: str) -> LaserReading:
         source=source,
         inclination_deg=reading.inclination_deg,
         raw=escape_bytes(reading.raw),
+        azimuth_deg=reading.azimuth_deg,
     )
 
 

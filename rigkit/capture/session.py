@@ -34,6 +34,13 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+from rigkit.capture.tripod import (
+    TRIPOD_KEY,
+    TripodPosition,
+    azimuth_from_data,
+    tripod_from_data,
+    tripod_to_data,
+)
 from rigkit.core.files import append_whole, write_text
 from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
@@ -85,7 +92,9 @@ class LaserReading:
     ``slope_distance_m``: range along the laser's line of sight from its aperture, m.
     ``inclination_deg``: above the horizontal, None if not reported. ``source``:
     ``manual`` (typed in), ``simulated`` or ``<protocol>:<port>`` for a device.
-    ``raw``: the device's frame as text, if any.
+    ``raw``: the device's frame as text, if any. ``azimuth_deg``: the laser's bearing,
+    degrees clockwise from north in [0, 360) (true or magnetic: the rig profile's
+    ``rangefinder.azimuth``), None if not reported.
     """
 
     slope_distance_m: float
@@ -93,6 +102,7 @@ class LaserReading:
     source: str
     inclination_deg: float | None = None
     raw: str | None = None
+    azimuth_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -150,6 +160,8 @@ class Session:
     targets: tuple[Target, ...] = ()
     operator: str = ""
     notes: str = ""
+    tripod: TripodPosition | None = None
+    """Where the tripod stood (``rigkit session set-position``), None if not recorded."""
 
     @property
     def frames(self) -> Mapping[str, Frame]:
@@ -288,7 +300,7 @@ def _session_from_data(data: Any, path: Path) -> Session:
     top = top_key.mapping(
         data,
         required=("format", "name", "created_utc", "rig", "frames", "targets"),
-        optional=("operator", "notes"),
+        optional=("operator", "notes", TRIPOD_KEY),
     )
     if top["format"] != FORMAT:
         raise top_key.child("format").error(f"must be {FORMAT}", top["format"])
@@ -318,6 +330,7 @@ def _session_from_data(data: Any, path: Path) -> Session:
         targets=targets,
         operator=_text(top.get("operator"), top_key.child("operator")),
         notes=_text(top.get("notes"), top_key.child("notes")),
+        tripod=top_key.optional(top, TRIPOD_KEY, tripod_from_data),
     )
     session.rig()  # validate the copied profile now, naming rig.values.<key>
     return session
@@ -390,7 +403,7 @@ def _target(value: Any, key: KeyPath) -> Target:
 def _reading(value: Any, key: KeyPath) -> LaserReading:
     keys = key.mapping(
         value, required=("slope_distance_m", "time_utc", "source"),
-        optional=("inclination_deg", "raw"),
+        optional=("inclination_deg", "raw", "azimuth_deg"),
     )
     inclination = keys.get("inclination_deg")
     raw = keys.get("raw")
@@ -401,6 +414,7 @@ def _reading(value: Any, key: KeyPath) -> LaserReading:
         inclination_deg=None if inclination is None
         else key.child("inclination_deg").number(inclination, "degrees"),
         raw=None if raw is None else key.child("raw").text(raw, strip=False),
+        azimuth_deg=key.optional(keys, "azimuth_deg", azimuth_from_data),
     )
 
 
@@ -423,6 +437,8 @@ def session_to_data(session: Session) -> dict[str, Any]:
         pos: _burst_to_data(session.bursts[pos]) for pos in POSITIONS if session.bursts.get(pos)
     }
     data["targets"] = [_target_to_data(t) for t in session.targets]
+    if session.tripod is not None:
+        data[TRIPOD_KEY] = tripod_to_data(session.tripod)
     return data
 
 
@@ -462,6 +478,8 @@ def _reading_to_data(reading: LaserReading) -> dict[str, Any]:
     }
     if reading.inclination_deg is not None:
         data["inclination_deg"] = reading.inclination_deg
+    if reading.azimuth_deg is not None:
+        data["azimuth_deg"] = reading.azimuth_deg
     if reading.raw is not None:
         data["raw"] = reading.raw
     return data

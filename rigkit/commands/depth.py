@@ -27,7 +27,8 @@ Frames are read as `rigkit process` reads a session's: RAW files through LibRaw 
 size (never an embedded preview), every frame checked for a picture and, with --rig, for
 the profile's image size. Writes DEPTH.npy ((H, W) float32, metres, z in the left camera,
 NaN = no estimate, in the original left image's pixel grid), DEPTH.sigma.npy (one
-standard error, metres), DEPTH.json (frames, rig, warnings, offset, matches, timings) and
+standard error, metres), DEPTH.json (frames, rig, warnings, offset, matches, timings),
+DEPTH.grey.png (the left image as the pipeline saw it, 8-bit, for `rigkit export`) and
 with --preview DEPTH.png and DEPTH.sigma.png. Outputs appear together or not at all.
 """
 
@@ -182,6 +183,7 @@ def _outputs(run: Any, out: Path, preview: bool) -> dict[str, Any]:
         out.name: result.depth,
         f"{out.stem}.sigma.npy": result.sigma,
         f"{out.stem}.json": json.dumps(run.metadata(), indent=2),
+        f"{out.stem}.grey.png": run.left_grey(),
     }
     if preview:
         lo, hi = depth_range(result.depth)

@@ -4,17 +4,21 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 EXAMPLE = """examples:
   rigkit process capture/example
   rigkit process capture/* --jobs 2
+  rigkit process /mnt/capture/* --scheduler tcp://10.0.0.5:8786   # on a Dask cluster
 
 for each session writes SESSION/results/ (depth.npy, sigma.npy, depth.json, depth.png
 and left.png with the targets marked, sigma.png, comparisons.csv), replacing the previous
 results as a whole, and appends one row per target to SESSION/comparisons.csv.
 A session that fails is reported and the others go on; the exit code is 1 if any failed.
+With --scheduler each session is a task on a Dask distributed cluster whose workers see
+the sessions at the same paths (pip install 'rigkit[cluster]'; docs/sessions.md).
 """
 
 
@@ -32,22 +36,25 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "as cores and free memory allow)")
     p.add_argument("--force", action="store_true",
                    help="process despite an EXIF focal length that contradicts the rig")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run each session as a task on this Dask distributed scheduler's "
+                   "workers instead of local processes")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.batch import auto_jobs, new_run_id, run_batch
+    from rigkit.batch import new_run_id
     from rigkit.core.progress import Progress
     from rigkit.errors import InputError
 
     paths = list(dict.fromkeys(args.sessions))
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs {args.jobs}: expected at least 1")
-    jobs = args.jobs or auto_jobs(paths)
+    where, process = _runner(args, paths)
     run_id = new_run_id()
     names = _task_names(paths)
-    print(f"run {run_id}: {len(paths)} session(s), {jobs} at a time", file=sys.stderr)
+    print(f"run {run_id}: {len(paths)} session(s), {where}", file=sys.stderr)
     with Progress("process", list(names.values()), quiet=args.quiet) as progress:
 
         def update(path: Path, stage: str, fraction: float) -> None:
@@ -58,14 +65,40 @@ def run(args: argparse.Namespace) -> int:
             for line in _outcome_lines(outcome):
                 progress.print(line)
 
-        outcomes = run_batch(paths, jobs, run_id=run_id, force=args.force,
-                             progress=update, on_done=finished)
+        outcomes = process(run_id, update, finished)
     failed = [o for o in outcomes if not o.ok]
     print(f"run {run_id}: {len(outcomes) - len(failed)} processed, {len(failed)} failed "
           f"({progress.elapsed():.1f} s)")
     for outcome in failed:
         print(f"  FAILED {_reason(outcome)}")
     return 1 if failed else 0
+
+
+def _runner(args: argparse.Namespace, paths: list[Path]) -> tuple[str, Callable[..., Any]]:
+    """Where the sessions will run, in words, and the call ``(run_id, update, finished)
+    -> outcomes`` that runs them: local worker processes, or a Dask cluster's workers
+    (reached, with a worker, before anything starts)."""
+    from rigkit.batch import auto_jobs, run_batch
+    from rigkit.errors import InputError
+
+    if args.scheduler is None:
+        jobs = args.jobs or auto_jobs(paths)
+        return f"{jobs} at a time", lambda run_id, update, finished: run_batch(
+            paths, jobs, run_id=run_id, force=args.force, progress=update, on_done=finished)
+    if args.jobs is not None:
+        raise InputError("--jobs applies to local processes; with --scheduler the cluster's "
+                         "workers decide how many sessions run at once")
+    from rigkit.batch.cluster import connect, run_on_cluster
+
+    client = connect(args.scheduler)
+
+    def on_cluster(run_id: str, update: Any, finished: Any) -> Any:
+        with client:
+            return run_on_cluster(paths, client, run_id=run_id, force=args.force,
+                                  on_done=finished)
+
+    workers = len(client.scheduler_info()["workers"])
+    return f"on the {workers} worker(s) of {args.scheduler}", on_cluster
 
 
 def _task_names(paths: list[Path]) -> dict[Path, str]:

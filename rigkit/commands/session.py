@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from rigkit.commands import count
+from rigkit.commands.session_position import register_set_position
 
 EXAMPLE = """examples:
   rigkit session new capture/ridge-0412 --rig rigs/p1000-tripod.yaml --operator "A. Field"
@@ -75,6 +76,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     target.add_argument("--timeout", type=float, default=30.0,
                         help="seconds to wait for each device reading")
     target.add_argument("--inclination", type=float, help="inclination of typed ranges, deg")
+    target.add_argument("--azimuth", type=float, help="azimuth of typed ranges, deg clockwise "
+                        "from north (true or magnetic: the rig profile's rangefinder.azimuth)")
     target.add_argument("--note", default="", help="what the target is")
     target.set_defaults(func=run_add_target)
 
@@ -102,6 +105,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     show.add_argument("session", type=Path)
     show.add_argument("--json", action="store_true", help="machine-readable output")
     show.set_defaults(func=run_show)
+    register_set_position(actions)
 
 
 def run_new(args: argparse.Namespace) -> int:
@@ -151,7 +155,7 @@ def run_add_target(args: argparse.Namespace) -> int:
     name = args.name or _next_name(session)
     stopped = None
     if args.range_m is not None:
-        readings = _typed_readings(session, args.range_m, args.inclination)
+        readings = _typed_readings(session, args.range_m, args.inclination, args.azimuth)
     else:
         readings, stopped = _device_readings(session, args)
     session = add_target(session, name, tuple(args.pixel), window_px=args.window,
@@ -173,11 +177,15 @@ def _next_name(session: Any) -> str:
     return f"T{n}"
 
 
-def _typed_readings(session: Any, ranges: list[str], inclination: float | None) -> list[Any]:
+def _typed_readings(session: Any, ranges: list[str], inclination: float | None,
+                    azimuth: float | None = None) -> list[Any]:
     from rigkit.capture import LaserReading, utc_now
+    from rigkit.capture.tripod import check_direction
     from rigkit.rangefinder.ranging import parse_typed_range
 
-    return [LaserReading(parse_typed_range(r, session.rig()), utc_now(), "manual", inclination)
+    check_direction(azimuth, inclination)
+    return [LaserReading(parse_typed_range(r, session.rig()), utc_now(), "manual", inclination,
+                         azimuth_deg=azimuth)
             for r in ranges]
 
 
@@ -300,6 +308,10 @@ def _show_text(session: Any) -> str:
     rig = session.rig()
     lines.append(f"  rig      {rig.name} (from {session.rig_reference}): f {rig.focal_px:.1f} "
                  f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
+    if session.tripod is not None:
+        t = session.tripod
+        lines.append(f"  tripod   {t.lat_deg:.7f}, {t.lon_deg:.7f}, {t.height_m:.2f} m "
+                     f"({t.source})")
     lines.append("frames")
     for position in POSITIONS:
         burst = session.bursts.get(position, ())

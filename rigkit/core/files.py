@@ -11,6 +11,7 @@ Three granularities:
   :func:`write_npy`, or :func:`write_file` choosing by content and suffix;
 * several files in one folder: :func:`write_together` stages them all in a hidden
   folder first, so a failure never leaves a mix of old and new outputs;
+  :func:`staged_files` does the same for files written by streaming writers;
 * a whole folder: :func:`replace_folder` stages a new folder, retires the current one,
   renames the staged one in and deletes the retired one; :func:`recover_folder`
   undoes what a crash in the middle of that left behind.
@@ -24,7 +25,7 @@ import os
 import secrets
 import shutil
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import BinaryIO
 
@@ -215,13 +216,34 @@ def write_together(folder: Path, files: Mapping[str, Content]) -> None:
     temporary folder inside it first, then each renamed into place, so a failure never
     leaves a mix of old and new outputs that looks complete. OSError if a write fails;
     nothing temporary is left behind either way."""
+    with staged_files(folder) as tmp:
+        for name, content in files.items():
+            _write_new(tmp / name, content)
+
+
+@contextlib.contextmanager
+def staged_files(folder: Path) -> Iterator[Path]:
+    """A hidden temporary folder inside ``folder`` to write several files into (streamed,
+    by any writer); when the block ends normally each file is fsynced and renamed into
+    ``folder``, replacing any of the same name. If the block raises, the temporary
+    folder and everything in it is removed and ``folder`` is left as it was."""
     folder = Path(folder)
     with tempfile.TemporaryDirectory(dir=folder, prefix=".rigkit-") as tmp:
-        for name, content in files.items():
-            _write_new(Path(tmp) / name, content)
-        for name in files:
-            os.replace(Path(tmp) / name, folder / name)
+        yield Path(tmp)
+        staged = sorted(Path(tmp).iterdir())
+        for path in staged:
+            _fsync_file(path)
+        for path in staged:
+            os.replace(path, folder / path.name)
     fsync_folder(folder)
+
+
+def _fsync_file(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def replace_folder(

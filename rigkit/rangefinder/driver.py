@@ -341,7 +341,31 @@ def _open_error(url: str, exc: BaseException) -> PortError:
     return PortError(f"cannot open {url}: {why}")
 
 
-def _port_name(port: object) -> str:
+def open_serial(
+    url: str, baud: int, *, bytesize: int = 8, parity: str = "N", stopbits: float = 1
+) -> Any:
+    """Open a pyserial URL or device path for an instrument (reads return within
+    :data:`POLL_S`), its input emptied; :class:`PortError` saying why it cannot be
+    opened (no such device, permission, in use)."""
+    try:
+        port = serial.serial_for_url(
+            url,
+            baudrate=baud,
+            bytesize=bytesize,
+            parity=parity,
+            stopbits=stopbits,
+            timeout=POLL_S,
+            write_timeout=2.0,
+            exclusive=True if "://" not in url else None,
+        )
+        port.reset_input_buffer()
+    except (serial.SerialException, OSError, ValueError) as exc:
+        raise _open_error(url, exc) from None
+    return port
+
+
+def port_name(port: object) -> str:
+    """How messages name an open port object: its ``name`` or ``port``, else its type."""
     for attribute in ("name", "port"):
         value = getattr(port, attribute, None)
         if isinstance(value, str) and value:
@@ -392,23 +416,13 @@ def open_rangefinder(
     if isinstance(url, str):
         name = url
         try:
-            port = serial.serial_for_url(
-                url,
-                baudrate=rate,
-                bytesize=bytesize,
-                parity=parity,
-                stopbits=stopbits,
-                timeout=POLL_S,
-                write_timeout=2.0,
-                exclusive=True if "://" not in url else None,
-            )
-            port.reset_input_buffer()
-        except (serial.SerialException, OSError, ValueError) as exc:
+            port = open_serial(url, rate, bytesize=bytesize, parity=parity, stopbits=stopbits)
+        except PortError:
             if log is not None:
                 log.close()
-            raise _open_error(url, exc) from None
+            raise
     else:
-        port, name = url, _port_name(url)
+        port, name = url, port_name(url)
     framing = f"{bytesize}{parity}{stopbits:g}"
     rangefinder = Rangefinder(port, spec, name=name, timeout=timeout, raw_log=log)
     rangefinder._note(f"opened {name} protocol={spec.name} baud={rate} {framing}")
@@ -424,4 +438,6 @@ __all__ = [
     "Rangefinder",
     "SerialLike",
     "open_rangefinder",
+    "open_serial",
+    "port_name",
 ]

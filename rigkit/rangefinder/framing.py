@@ -40,7 +40,7 @@ class Reading:
     ``horizontal_distance_m`` is the device's horizontal projection
     (slope x cos(inclination)) in metres, ``None`` when not reported.
     ``inclination_deg`` is degrees above the horizontal (negative: below).
-    ``azimuth_deg`` is the device's compass bearing in degrees, ``None`` when
+    ``azimuth_deg`` is the device's compass bearing in degrees in [0, 360), ``None`` when
     absent (a TruPulse 200 sends a dummy 0.00, which is passed through).
     ``unit`` is the unit the device sent the distance in: ``"m"``, ``"ft"``,
     ``"yd"`` or ``"cm"``. ``timestamp`` is when the frame was received, in

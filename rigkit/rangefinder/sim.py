@@ -1,6 +1,7 @@
 """Simulated rangefinders, for tests and for trying rigkit without hardware.
 
-The core (:class:`SimulatedTruPulse`, :class:`SimulatedVectronix`) is a pure
+The core (:class:`SimulatedTruPulse`, :class:`SimulatedVectronix`, and
+:class:`SimulatedGps` for the tripod's position) is a pure
 state machine driven by an explicit clock: feed it the host's bytes with
 :meth:`~SimulatedDevice.receive`, collect what it has sent by a given time
 with :meth:`~SimulatedDevice.output`. Two front ends run it on a real line:
@@ -29,6 +30,7 @@ from types import TracebackType
 from urllib.parse import parse_qsl, urlsplit
 
 from rigkit.errors import InputError
+from rigkit.rangefinder.gps import encode_gga
 from rigkit.rangefinder.trupulse import TRUPULSE_UNITS, encode_trupulse_hv, trupulse_sentence
 from rigkit.rangefinder.vectronix import (
     VECTRONIX_TARGETS,
@@ -39,14 +41,21 @@ from rigkit.rangefinder.vectronix import (
 
 SIM_OPTIONS: dict[str, str] = {
     "distance": "true slope distance to the target in metres (default 302)",
+    "lat": "gps: latitude in degrees, north positive (default 46.5)",
+    "lon": "gps: longitude in degrees, east positive (default 7.5)",
+    "height": "gps: height above mean sea level in metres (default 500)",
     "inclination": "trupulse: inclination in degrees, positive up (default 1.2)",
     "azimuth": "trupulse: azimuth in degrees (default 47.3)",
     "unit": "trupulse: unit the device sends, M, F or Y (default M)",
-    "interval": "trupulse: seconds between the simulated user's shots, 0 = only on $GO (default 1)",
-    "noise": "1-sigma range noise in metres (default 0)",
+    "interval": "trupulse: seconds between the simulated user's shots, 0 = only on $GO; "
+    "gps: seconds between fixes (default 1)",
+    "noise": "1-sigma range noise in metres; gps: 1-sigma horizontal position noise, m "
+    "(default 0)",
     "low_quality": "trupulse: probability a shot is flagged low-quality (default 0)",
     "miss": "probability a shot finds no target (default 0)",
-    "other": "trupulse: probability of an HT or unknown sentence before a shot (default 0)",
+    "other": "trupulse, gps: probability of another sentence before a shot or fix "
+    "(default 0)",
+    "nofix": "gps: GGA sentences without a fix before the first fix (default 0)",
     "garbage": "probability of line noise and a cut-off sentence before a frame (default 0)",
     "bad_checksum": "probability a frame is sent with a wrong checksum (default 0)",
     "silent": "1 = the device never sends anything (default 0)",
@@ -55,7 +64,14 @@ SIM_OPTIONS: dict[str, str] = {
 }
 """Simulator URL options (``sim://<device>?key=value&...``) and what they do."""
 
-_TRUPULSE_ONLY = ("inclination", "azimuth", "unit", "interval", "low_quality", "other")
+_COMMON = ("noise", "garbage", "bad_checksum", "silent", "disconnect_after", "seed")
+_APPLIES = {
+    "trupulse": (*_COMMON, "distance", "miss", "inclination", "azimuth", "unit", "interval",
+                 "low_quality", "other"),
+    "vectronix": (*_COMMON, "distance", "miss"),
+    "gps": (*_COMMON, "lat", "lon", "height", "interval", "other", "nofix"),
+}
+"""The options each simulated device takes; the others must keep their defaults."""
 # Bytes that delimit frames in either protocol; simulated noise avoids them so
 # that noise corrupts the line without forging prompts or frame starts.
 _FRAMING = frozenset(b"$><!\r\n*")
@@ -71,6 +87,10 @@ class SimConfig:
 
     device: str = "trupulse"
     distance: float = 302.0
+    lat: float = 46.5
+    lon: float = 7.5
+    height: float = 500.0
+    nofix: int = 0
     inclination: float = 1.2
     azimuth: float = 47.3
     unit: str = "M"
@@ -86,9 +106,9 @@ class SimConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if self.device not in ("trupulse", "vectronix"):
+        if self.device not in _APPLIES:
             raise InputError(
-                f"unknown simulated device {self.device!r} (choose trupulse or vectronix)"
+                f"unknown simulated device {self.device!r} (choose trupulse, vectronix or gps)"
             )
         if not (math.isfinite(self.distance) and self.distance > 0):
             raise InputError(f"simulator distance must be positive, got {self.distance}")
@@ -106,11 +126,13 @@ class SimConfig:
             raise InputError(
                 f"simulator disconnect_after must be >= 0, got {self.disconnect_after}"
             )
-        if self.device == "vectronix":
-            defaults = SimConfig()
-            for name in _TRUPULSE_ONLY:
-                if getattr(self, name) != getattr(defaults, name):
-                    raise InputError(f"simulator option {name} does not apply to vectronix")
+        if not (-90 <= self.lat <= 90 and -180 <= self.lon <= 180 and self.nofix >= 0):
+            raise InputError(f"simulator lat {self.lat}, lon {self.lon} or nofix "
+                             f"{self.nofix} out of range")
+        for f in fields(self):
+            if f.name not in ("device", *_APPLIES[self.device]) and (
+                    getattr(self, f.name) != f.default):
+                raise InputError(f"simulator option {f.name} does not apply to {self.device}")
 
 
 def parse_sim_url(url: str) -> SimConfig:
@@ -319,11 +341,41 @@ class SimulatedVectronix(SimulatedDevice):
         self.send_prompt(b"!")
 
 
+class SimulatedGps(SimulatedDevice):
+    """A GPS receiver: a GGA sentence every ``interval`` seconds, the first ``nofix``
+    without a fix, then at ``lat``/``lon``/``height`` with Gaussian horizontal noise of
+    ``noise`` metres per axis."""
+
+    def __init__(self, config: SimConfig, now: float) -> None:
+        super().__init__(config, now)
+        self._next_fix = now + config.interval
+
+    def next_event(self) -> float | None:
+        return None if self.disconnected else self._next_fix
+
+    def advance(self, now: float) -> None:
+        while self._next_fix <= now and not self.disconnected:
+            self.fix(self._next_fix)
+            self._next_fix += max(self.config.interval, 1e-3)
+
+    def fix(self, now: float) -> None:
+        """One GGA sentence (and, with probability ``other``, an RMC before it)."""
+        cfg, rng = self.config, self.rng
+        if rng.random() < cfg.other:
+            self.send(trupulse_sentence(["GPRMC", "", "V", "", "", "", "", "", "", "", ""]))
+        metres_per_deg = 111_320.0
+        north, east = rng.gauss(0.0, cfg.noise), rng.gauss(0.0, cfg.noise)
+        lat = cfg.lat + north / metres_per_deg
+        lon = cfg.lon + east / (metres_per_deg * max(math.cos(math.radians(cfg.lat)), 1e-6))
+        quality = 0 if self.frames_sent < cfg.nofix else 1
+        self.send(encode_gga(lat, lon, cfg.height, utc_s=now, quality=quality,
+                             satellites=9 if quality else 3))
+
+
 def make_device(config: SimConfig, now: float) -> SimulatedDevice:
     """The simulated device ``config`` describes, powered on at time ``now``."""
-    if config.device == "vectronix":
-        return SimulatedVectronix(config, now)
-    return SimulatedTruPulse(config, now)
+    devices = {"vectronix": SimulatedVectronix, "gps": SimulatedGps}
+    return devices.get(config.device, SimulatedTruPulse)(config, now)
 
 
 class PtySimulator:

@@ -127,6 +127,8 @@ def parse_trupulse(frame: bytes, timestamp: float) -> Reading | Notice:
     hd, hd_unit, az, az_unit, inc, inc_unit, sd, sd_unit = values
     inclination = _angle(inc, inc_unit, "inclination")
     azimuth = _angle(az, az_unit, "azimuth")
+    if azimuth is not None:
+        azimuth %= 360.0  # a bearing of 360.00 is north, as 0.00 is
     if sd == "":
         return Notice(kind="HV", fields=tuple(values), raw=frame)
     slope, quality = _trupulse_distance(sd, sd_unit, "slope distance")

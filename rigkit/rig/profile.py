@@ -49,6 +49,8 @@ _MAX_OFFSET_M = 10.0
 _MAX_RANGE_M = 100_000.0
 _MAX_BAUD = 4_000_000
 _PROTOCOL_PATTERN = re.compile(r"[a-z0-9][a-z0-9_-]*")
+AZIMUTH_REFERENCES = ("true", "magnetic")
+"""What a rangefinder's azimuths may be measured from (profile key ``rangefinder.azimuth``)."""
 
 
 # --------------------------------------------------------------------------- the profile
@@ -76,6 +78,9 @@ class RangefinderSpec:
     its aperture from the left camera's optical centre, in metres, None if unknown.
     ``max_range_m``: the longest range the device measures (None: its protocol's,
     :func:`rigkit.rangefinder.ranging.max_range_m`); longer readings are refused.
+    ``azimuth`` says what the readings' azimuths are measured from: ``true`` north
+    (the default) or ``magnetic`` north, which lies ``declination_deg`` degrees east
+    of true north (negative: west), so true = magnetic + declination.
     """
 
     protocol: str
@@ -83,6 +88,12 @@ class RangefinderSpec:
     baud: int | None
     offset_m: tuple[float, float, float] | None
     max_range_m: float | None = None
+    azimuth: str = "true"
+    declination_deg: float = 0.0
+
+    def true_azimuth_deg(self, azimuth_deg: float) -> float:
+        """A reading's azimuth as degrees clockwise from true north, in [0, 360)."""
+        return (azimuth_deg + self.declination_deg) % 360.0
 
 
 @dataclass(frozen=True)
@@ -273,7 +284,8 @@ def _back_offset(value: Any, key: KeyPath) -> tuple[float, float]:
 
 def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
     keys = key.mapping(value, required=("protocol",),
-                       optional=("port", "baud", "offset", "max_range_m"))
+                       optional=("port", "baud", "offset", "max_range_m", "azimuth",
+                                 "declination_deg"))
     protocol = keys["protocol"]
     if not isinstance(protocol, str) or not _PROTOCOL_PATTERN.fullmatch(protocol):
         raise key.child("protocol").error(
@@ -290,7 +302,29 @@ def _rangefinder(value: Any, key: KeyPath) -> RangefinderSpec:
         baud=baud,
         offset_m=key.optional(keys, "offset", _rangefinder_offset),
         max_range_m=key.optional(keys, "max_range_m", _max_range),
+        **_azimuth_reference(keys, key),
     )
+
+
+def _azimuth_reference(keys: dict[str, Any], key: KeyPath) -> dict[str, Any]:
+    """``azimuth`` (true or magnetic) and the magnetic declination it needs."""
+    azimuth = keys.get("azimuth", "true")
+    if azimuth not in AZIMUTH_REFERENCES:
+        raise key.child("azimuth").error("must be 'true' or 'magnetic'", azimuth)
+    if "declination_deg" not in keys:
+        if azimuth == "magnetic":
+            raise key.child("declination_deg").error(
+                "missing: magnetic azimuths need the local declination (degrees east of "
+                "true north, negative west; e.g. from NOAA's declination calculator)")
+        return {"azimuth": azimuth}
+    declination = key.child("declination_deg").number(keys["declination_deg"], "degrees")
+    if azimuth != "magnetic":
+        raise key.child("declination_deg").error("applies to 'azimuth: magnetic' only",
+                                                 declination)
+    if not -180.0 <= declination <= 180.0:
+        raise key.child("declination_deg").error("must be between -180 and 180 degrees",
+                                                 declination)
+    return {"azimuth": azimuth, "declination_deg": declination}
 
 
 def _max_range(value: Any, key: KeyPath) -> float:
@@ -374,4 +408,7 @@ def _rangefinder_to_dict(spec: RangefinderSpec) -> dict[str, Any]:
         data["offset"] = {"right_m": right, "up_m": up, "forward_m": forward}
     if spec.max_range_m is not None:
         data["max_range_m"] = spec.max_range_m
+    if spec.azimuth != "true":
+        data["azimuth"] = spec.azimuth
+        data["declination_deg"] = spec.declination_deg
     return data

@@ -29,6 +29,10 @@ def test_depth_writes_depth_sigma_sidecar_and_previews(scene_dir, truth, tmp_pat
     assert meta["matches"]["left_right"] > 100 and "stereo" in meta["timings_s"]
     assert cv2.imread(str(tmp_path / "d.png")) is not None
     assert "wrote" in capsys.readouterr().out
+    # What rigkit export needs: the left image's grey values and the intrinsics.
+    grey = cv2.imread(str(tmp_path / "d.grey.png"), cv2.IMREAD_UNCHANGED)
+    assert grey.shape == depth.shape and grey.dtype == np.uint8
+    assert meta["left_camera_px"] == {"f": truth.focal_px, "cx": 479.5, "cy": 359.5}
 
 
 def test_depth_reads_the_rig_profile(scene_dir, truth, tmp_path):

@@ -70,7 +70,12 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen)
                        and "targets within" in text(app, "#verdict"), "the verdict", 60)
         assert app.screen.query_one("#rows").row_count == 2
+        await pilot.press("e")  # export: no tripod position, so in the camera frame
+        await wait_for(pilot, lambda: "points in the camera frame" in text(app, "#stage"),
+                       "the export", 30)
         await pilot.press("q")
+    assert sorted(p.name for p in (demo.session / "export").iterdir()) == [
+        f"{demo.session.name}.las", f"{demo.session.name}.ply"]
     session = load_session(demo.session)
     assert taken(session) == ["left", "right", "back"]
     assert [len(t.readings) for t in session.targets] == [3, 3]

@@ -20,7 +20,8 @@ from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
 from rigkit.reporting.verdict import judge, run_shortfalls
-from rigkit.tui.screens.common import StepScreen, escape, session_of
+from rigkit.tui.screens.common import escape, session_of
+from rigkit.tui.screens.exporting import ExportingScreen
 from rigkit.tui.widgets import PixelView
 
 
@@ -28,8 +29,9 @@ class Stopped(Exception):
     """Processing given up because its screen closed (raised from the progress report)."""
 
 
-class ProcessScreen(StepScreen):
-    """Run the depth pipeline; show the depth, the laser comparisons and the verdict."""
+class ProcessScreen(ExportingScreen):
+    """Run the depth pipeline; show the depth, the laser comparisons and the verdict;
+    ``e`` exports the results (:mod:`rigkit.tui.screens.exporting`)."""
 
     step = "process"
     BINDINGS = [Binding("r", "run", "process")]

@@ -1,0 +1,97 @@
+"""Processing many sessions on a Dask distributed cluster (``rigkit process
+--scheduler tcp://HOST:PORT``): each session is one task, run by
+:func:`rigkit.batch.pool.safe_process` on a worker, so the lock, the atomic results and
+the per-session outcome are those of the local pool.
+
+The workers read and write the sessions where they lie: every machine must see the
+capture folder at the same path (a shared filesystem whose locks work across machines,
+such as NFSv4). Only the session's path goes to the scheduler and only its
+:class:`~rigkit.batch.session.Outcome` comes back; the frames never pass through it.
+Needs the ``cluster`` extra (``pip install 'rigkit[cluster]'``: ``dask[distributed]``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from rigkit.batch.pool import log_failure, safe_process
+from rigkit.batch.session import Outcome, new_run_id
+from rigkit.errors import InputError
+
+CONNECT_TIMEOUT_S = 5.0
+"""How long to try to reach the scheduler before giving up."""
+WORKER_WAIT_S = 10.0
+"""How long to wait for a first worker to join a reachable scheduler."""
+
+
+def _distributed() -> ModuleType:
+    try:
+        import distributed
+    except ImportError:
+        raise InputError("--scheduler needs Dask distributed: pip install 'rigkit[cluster]'"
+                         ) from None
+    return distributed
+
+
+def connect(scheduler: str) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``scheduler`` with a worker; InputError
+    (one line) when it cannot be reached within :data:`CONNECT_TIMEOUT_S` or no worker
+    joins it within :data:`WORKER_WAIT_S`."""
+    distributed = _distributed()
+    try:
+        client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except (OSError, ValueError, TimeoutError) as exc:
+        raise InputError(f"--scheduler {scheduler}: cannot reach the scheduler ({exc}); is "
+                         "`dask scheduler` running there?") from None
+    try:
+        client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+    except (OSError, TimeoutError):
+        client.close()
+        raise InputError(f"--scheduler {scheduler}: no worker joined within "
+                         f"{WORKER_WAIT_S:g} s (start one: dask worker {scheduler})") from None
+    return client
+
+
+def run_on_cluster(
+    paths: Sequence[Path],
+    client: Any,
+    *,
+    run_id: str | None = None,
+    force: bool = False,
+    on_done: Callable[[Outcome], None] | None = None,
+) -> list[Outcome]:
+    """Process sessions as tasks on the cluster of ``client`` (from :func:`connect`);
+    outcomes in the order of ``paths``, carrying the paths as given. ``on_done(outcome)``
+    is called as each task completes. A task lost with its worker fails only its own
+    session."""
+    distributed = _distributed()
+    run_id = run_id or new_run_id()
+    done = on_done or (lambda outcome: None)
+    futures = {
+        client.submit(safe_process, path.absolute(), run_id, force, pure=False,
+                      key=f"rigkit-process-{run_id}-{i}"): path
+        for i, path in enumerate(paths)
+    }
+    outcomes: dict[Path, Outcome] = {}
+    for future in distributed.as_completed(futures, loop=client.loop):
+        path = futures[future]
+        outcome = replace(_result(future, path, run_id), path=path)
+        outcomes[path] = outcome
+        done(outcome)
+    return [outcomes[path] for path in paths]
+
+
+def _result(future: Any, path: Path, run_id: str) -> Outcome:
+    """A finished task's Outcome, or a failed one when the task itself failed (its
+    worker died, rigkit missing on the worker, ...)."""
+    try:
+        outcome: Outcome = future.result()
+        return outcome
+    except Exception as exc:
+        message = f"task failed on the cluster ({type(exc).__name__}: {exc})"
+        log_failure(path, run_id, message)
+        return Outcome(path, False, message, 0.0)

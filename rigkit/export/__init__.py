@@ -1,0 +1,32 @@
+"""Exporting depth maps for other tools: point clouds (PLY; LAS and LAZ for GIS) and a
+float32 TIFF raster, in the left camera's frame or georeferenced in the tripod's UTM
+zone from the tripod's position and the laser's directions to the targets
+(docs/outputs.md)."""
+
+from rigkit.export.georef import Georeference, Orientation, georeference, orient_camera
+from rigkit.export.run import (
+    DEFAULT_FORMATS,
+    EXPORT_DIR,
+    FORMATS,
+    Exported,
+    export_depth,
+    export_path,
+    parse_formats,
+)
+from rigkit.export.source import DepthMap, open_depth
+
+__all__ = [
+    "DEFAULT_FORMATS",
+    "EXPORT_DIR",
+    "FORMATS",
+    "DepthMap",
+    "Exported",
+    "Georeference",
+    "Orientation",
+    "export_depth",
+    "export_path",
+    "georeference",
+    "open_depth",
+    "orient_camera",
+    "parse_formats",
+]

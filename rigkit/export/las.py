@@ -1,0 +1,85 @@
+"""LAS 1.4 and LAZ point clouds through laspy (LAZ compressed by the lazrs backend).
+
+Point format 7: X, Y, Z as 32-bit integers times a scale plus an offset (chosen so the
+whole map fits at millimetre steps where it can), intensity and red, green, blue from
+the left image's grey value (x 257, so 255 is 65535), and an extra-bytes dimension
+``sigma`` (float32, metres: the depth's one standard error). A georeferenced file
+carries its CRS as an OGC WKT VLR (LAS 1.4's WKT bit set), which QGIS, PDAL and
+CloudCompare read, so they place it without asking.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import laspy
+import numpy as np
+
+from rigkit import __version__
+from rigkit.export.points import PointChunk
+
+POINT_FORMAT = 7
+SCALES_M = (0.001, 0.01, 0.1, 1.0)
+_INT32 = 2**31 - 1
+
+
+def las_scale(extent_m: float) -> float:
+    """The finest of :data:`SCALES_M` at which coordinates within ``extent_m`` metres of
+    the offset fit LAS's 32-bit integers."""
+    for scale in SCALES_M:
+        if extent_m / scale < _INT32 * 0.99:
+            return scale
+    raise ValueError(f"points {extent_m:g} m from the origin do not fit a LAS file")
+
+
+def las_header(offset: tuple[float, float, float], extent_m: float, crs: Any | None,
+               description: str) -> laspy.LasHeader:
+    """A LAS 1.4 point format 7 header with the ``sigma`` extra dimension. ``offset``:
+    a point near the data (the tripod, or the camera's origin), metres; ``extent_m``: how
+    far from it the farthest point may be; ``crs``: a pyproj CRS or None (a local frame)."""
+    header = laspy.LasHeader(point_format=POINT_FORMAT, version="1.4")
+    header.add_extra_dim(laspy.ExtraBytesParams(
+        name="sigma", type=np.float32, description="1-sigma depth error, m"))
+    # laspy 2.7 takes a written extra dimension's min and max from each chunk's first
+    # point only: leave the (optional) statistics out rather than wrong.
+    for struct in header.vlrs.get("ExtraBytesVlr")[0].extra_bytes_structs:
+        struct.options &= ~(struct.MIN_BIT_MASK | struct.MAX_BIT_MASK)
+    header.offsets = np.array([math.floor(v) for v in offset], np.float64)
+    header.scales = np.full(3, las_scale(extent_m))
+    header.system_identifier = description[:32]
+    header.generating_software = f"rigkit {__version__}"[:32]
+    if crs is not None:
+        header.add_crs(crs)
+    return header
+
+
+class LasWriter:
+    """Streams points to a LAS (``compress=False``) or LAZ file at ``path``."""
+
+    def __init__(self, path: Path, header: laspy.LasHeader, *, compress: bool) -> None:
+        self._header = header
+        backend = laspy.LazBackend.Lazrs if compress else None
+        self._writer = laspy.open(path, mode="w", header=header, do_compress=compress,
+                                  laz_backend=backend)
+
+    def write(self, chunk: PointChunk) -> None:
+        points = laspy.ScaleAwarePointRecord.zeros(len(chunk.grey), header=self._header)
+        points.x, points.y, points.z = chunk.xyz[:, 0], chunk.xyz[:, 1], chunk.xyz[:, 2]
+        level = chunk.grey.astype(np.uint16) * 257
+        points.intensity = level
+        points.red = points.green = points.blue = level
+        points.sigma = chunk.sigma
+        self._writer.write_points(points)
+
+    def close(self) -> None:
+        self._writer.close()
+
+    def __enter__(self) -> LasWriter:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 trace: TracebackType | None) -> None:
+        self.close()

@@ -1,0 +1,45 @@
+"""The verdict screen's export: ``e`` writes the session's latest results into
+``SESSION/export/`` (PLY and LAS: on the map when the session knows where the tripod
+stood and its targets give the camera's orientation, else in the camera frame) in a
+worker thread, and says where on the screen's ``#stage`` line."""
+
+from __future__ import annotations
+
+from textual import work
+from textual.binding import Binding
+from textual.widgets import Static
+
+from rigkit.errors import RigkitError
+from rigkit.export import DEFAULT_FORMATS, EXPORT_DIR, Exported, export_path
+from rigkit.tui.screens.common import StepScreen, escape, session_of
+
+
+class ExportingScreen(StepScreen):
+    """A step screen with a ``#stage`` line that can export the session's results."""
+
+    BINDINGS = [Binding("e", "export", "export")]
+
+    def action_export(self) -> None:
+        self.query_one("#stage", Static).update("exporting ...")
+        self._export()
+
+    @work(thread=True, exclusive=True, group="export")
+    def _export(self) -> None:
+        path = session_of(self).path
+        try:
+            done = export_path(path, path / EXPORT_DIR, DEFAULT_FORMATS)
+        except RigkitError as exc:
+            self.app.call_from_thread(self._said, f"[b $error]✘ {escape(str(exc))}[/]")
+            return
+        self.app.call_from_thread(self._said, _exported(done))
+
+    def _said(self, markup: str) -> None:
+        self.query_one("#stage", Static).update(markup)
+
+
+def _exported(done: Exported) -> str:
+    where = "on the map" if done.georef is not None else "in the camera frame"
+    folder = done.files[0].parent
+    names = ", ".join(f.name for f in done.files)
+    return (f"[b $success]✔[/] {done.points} points {where}: "
+            f"{escape(names)} in {escape(str(folder))}")

@@ -1,0 +1,81 @@
+"""``rigkit process --scheduler``: sessions as tasks on a Dask distributed cluster (a
+local one here), failures per session, and a scheduler that cannot be used."""
+
+from __future__ import annotations
+
+import socket
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rigkit.capture.comparisons import LOG_NAME, read_rows
+from rigkit.cli import main
+from tests.conftest import copy_session
+
+distributed = pytest.importorskip("distributed")
+
+
+def test_sessions_run_as_tasks_on_a_cluster(
+    synth_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a, b = (copy_session(synth_session, tmp_path, name) for name in ("a", "b"))
+    broken = copy_session(synth_session, tmp_path, "broken",
+                          edit=lambda data: data["frames"].pop("back"))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  protocol="tcp", host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        code = main(["process", str(a), str(b), str(broken), "--scheduler",
+                     cluster.scheduler_address, "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 1
+    assert "on the 1 worker(s) of tcp://127.0.0.1:" in captured.err
+    assert "2 processed, 1 failed" in captured.out
+    assert f"FAILED {broken}: no back frame" in captured.out
+    assert f"    ok {a} (" in captured.err and f"    ok {b} (" in captured.err
+    # The same per-session work as the local pool: results, the log, one run id.
+    for session in (a, b):
+        assert (session / "results" / "depth.npy").is_file()
+        assert not list(session.glob(".results*"))
+    run_ids = {row.run_id for s in (a, b) for row in read_rows(s / LOG_NAME)}
+    assert len(run_ids) == 1
+    assert "FAILED: " in (broken / "history.log").read_text()
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_an_unreachable_scheduler_fails_fast_with_one_line(
+    synth_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr("rigkit.batch.cluster.CONNECT_TIMEOUT_S", 1.0)
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    t0 = time.monotonic()
+    assert main(["process", str(synth_session), "--scheduler", address]) == 2
+    assert time.monotonic() - t0 < 5
+    err = capsys.readouterr().err.strip()
+    assert f"--scheduler {address}: cannot reach the scheduler" in err
+    assert len(err.splitlines()) == 1
+
+
+def test_a_scheduler_without_workers(
+    synth_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr("rigkit.batch.cluster.WORKER_WAIT_S", 0.5)
+    with distributed.LocalCluster(n_workers=0, processes=False,
+                                  dashboard_address=None) as cluster:
+        assert main(["process", str(synth_session), "--scheduler",
+                     cluster.scheduler_address]) == 2
+    assert "no worker joined within 0.5 s (start one: dask worker" in capsys.readouterr().err
+
+
+def test_without_distributed_it_says_which_extra(
+    synth_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
+    assert main(["process", str(synth_session), "--scheduler", "tcp://127.0.0.1:8786"]) == 2
+    assert "pip install 'rigkit[cluster]'" in capsys.readouterr().err

@@ -1,0 +1,162 @@
+"""``rigkit export``: PLY, LAS, LAZ and TIFF from a session or a depth map file, point
+for point; chunks, --step, atomic output and one-line errors."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import cv2
+import laspy
+import numpy as np
+import pytest
+import tifffile
+
+from rigkit.capture import load_session
+from rigkit.cli import main
+from rigkit.errors import InputError
+from rigkit.export import export_path
+from rigkit.rangefinder.ranging import profile_range_from_depth
+from tests.export.helpers import SIZE, depth_plane, new_session, read_ply
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "capture" / "example"
+
+
+def test_the_bundled_example_as_ply_las_laz_and_tif(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The example processed in a copy, then exported: every format holds every estimated
+    pixel, and the points' median z is the depth map's."""
+    session = tmp_path / "example"
+    shutil.copytree(EXAMPLE, session)
+    assert main(["process", str(session), "--quiet"]) == 0
+    out = tmp_path / "cloud"
+    assert main(["export", str(session), "--out", str(out), "--format", "ply,las,laz,tif",
+                 "--quiet"]) == 0
+    depth = np.load(session / "results" / "depth.npy")
+    finite = depth[np.isfinite(depth)]
+    printed = capsys.readouterr().out
+    assert f"{finite.size} points, median z {np.median(finite):.2f} m" in printed
+    ply = read_ply(out / "example.ply")
+    assert len(ply) == finite.size
+    assert np.median(ply["z"]) == pytest.approx(np.median(finite), abs=1e-4)
+    for name in ("example.las", "example.laz"):
+        las = laspy.read(out / name)
+        assert las.header.point_count == finite.size and las.header.parse_crs() is None
+        assert np.median(las.z) == pytest.approx(np.median(finite), abs=1e-3)
+        assert np.allclose(las.x, ply["x"], atol=1e-3) and np.array_equal(las.red // 257,
+                                                                          ply["red"])
+        assert np.allclose(las.sigma, ply["sigma"])
+    with tifffile.TiffFile(out / "example.tif") as tif:
+        bands = tif.asarray()
+        meta = tif.shaped_metadata[0]
+    assert np.array_equal(bands[0], depth, equal_nan=True)
+    assert meta["bands"] == ["depth_m", "sigma_m"] and meta["rig"] == "synthetic-seed-7"
+    assert sorted(p.name for p in out.iterdir()) == [
+        "example.las", "example.laz", "example.ply", "example.tif"]
+
+
+def test_points_are_the_pixels_back_projected_as_the_laser_comparison_does(
+    tmp_path: Path,
+) -> None:
+    session = new_session(tmp_path)
+    export_path(session, tmp_path / "out", ["ply"], step=3)
+    ply = read_ply(tmp_path / "out" / "geo.ply")
+    depth = depth_plane()
+    grid = depth[::3, ::3]
+    assert len(ply) == np.isfinite(grid).sum()
+    # The last grid point: pixel (399, 297), its range from the camera as the comparison has it.
+    u, v = (SIZE[0] - 1) // 3 * 3, (SIZE[1] - 1) // 3 * 3
+    last = ply[-1]
+    profile = load_session(session).rig()
+    expected = profile_range_from_depth(profile, SIZE, float(depth[v, u]), (u, v))
+    assert float(np.linalg.norm([last["x"], last["y"], last["z"]])) == pytest.approx(
+        expected, rel=1e-6)
+    assert last["x"] > 0 and last["y"] > 0  # right of and below the centre: x right, y down
+    assert last["sigma"] == pytest.approx(0.01 * depth[v, u])
+
+
+def test_chunks_give_the_same_file_as_one_pass(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    session = new_session(tmp_path)
+    export_path(session, tmp_path / "one", ["ply", "las"])
+    monkeypatch.setattr("rigkit.export.points.CHUNK_POINTS", 1000)  # 2 rows at a time
+    export_path(session, tmp_path / "many", ["ply", "las"])
+    for name in ("geo.ply", "geo.las"):
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "many" / name).read_bytes()
+
+
+def test_a_depth_map_file_from_rigkit_depth(tmp_path: Path) -> None:
+    """D.npy with D.sigma.npy, D.grey.png and D.json: the intrinsics from D.json."""
+    depth = depth_plane()
+    np.save(tmp_path / "d.npy", depth)
+    np.save(tmp_path / "d.sigma.npy", depth * np.float32(0.01))
+    cv2.imwrite(str(tmp_path / "d.grey.png"), np.full(depth.shape, 77, np.uint8))
+    meta = {"rig": {"name": "bench", "focal_px": 4000.0},
+            "left_camera_px": {"f": 4000.0, "cx": 100.0, "cy": 50.0}}
+    (tmp_path / "d.json").write_text(json.dumps(meta))
+    done = export_path(tmp_path / "d.npy", tmp_path / "out", ["ply"])
+    ply = read_ply(tmp_path / "out" / "d.ply")
+    first = ply[0]  # pixel (20, 0): the top-left corner is NaN
+    assert first["x"] == pytest.approx((20 - 100.0) / 4000.0 * depth[0, 20], rel=1e-6)
+    assert first["y"] == pytest.approx((0 - 50.0) / 4000.0 * depth[0, 20], rel=1e-6)
+    assert set(ply["red"]) == {77} and done.georef is None
+    # A D.json from before rigkit recorded the intrinsics: its focal length, the centre.
+    del meta["left_camera_px"]
+    (tmp_path / "d.json").write_text(json.dumps(meta))
+    export_path(tmp_path / "d.npy", tmp_path / "old", ["ply"])
+    old = read_ply(tmp_path / "old" / "d.ply")[0]
+    assert old["x"] == pytest.approx((20 - 199.5) / 4000.0 * depth[0, 20], rel=1e-6)
+
+
+def test_a_failure_leaves_no_partial_output(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    session = new_session(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "geo.ply").write_bytes(b"the previous export")
+    monkeypatch.setattr("rigkit.export.points.CHUNK_POINTS", 1000)
+    calls = []
+
+    def full_disk(self, chunk) -> None:
+        calls.append(1)
+        if len(calls) > 3:
+            raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("rigkit.export.las.LasWriter.write", full_disk)
+    with pytest.raises(InputError, match="cannot write the export .No space left on device."):
+        export_path(session, out, ["ply", "las"])
+    assert [p.name for p in out.iterdir()] == ["geo.ply"]  # no .las, no temporary folder
+    assert (out / "geo.ply").read_bytes() == b"the previous export"
+
+
+@pytest.mark.parametrize(("setup", "message"), [
+    (lambda p: (p / "results" / "grey.png").unlink(),
+     "grey.png: missing (written since rigkit records the grey values for export); run "
+     "`rigkit process"),
+    (lambda p: shutil.rmtree(p / "results"), "no results yet; run `rigkit process"),
+    (lambda p: np.save(p / "results" / "sigma.npy", np.zeros((3, 3), np.float32)),
+     "must be one (H, W) size"),
+    (lambda p: (p / "session.yaml").unlink(), "not a session folder"),
+])
+def test_bad_inputs_get_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], setup, message: str
+) -> None:
+    session = new_session(tmp_path)
+    setup(session)
+    assert main(["export", str(session), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+
+
+def test_bad_options_get_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    session = new_session(tmp_path)
+    out = ["--out", str(tmp_path / "out")]
+    assert main(["export", str(session), *out, "--format", "ply,obj"]) == 2
+    assert "--format 'ply,obj': choose from ply, las, laz, tif" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse: usage and the reason, exit status 2
+        main(["export", str(session), *out, "--step", "0"])
+    assert "must be at least 1, got 0" in capsys.readouterr().err
