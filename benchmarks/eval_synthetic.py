@@ -54,13 +54,16 @@ def scene_params(args: argparse.Namespace) -> SynthParams:
     return params
 
 
-def synth_setting(text: str) -> tuple[str, float | int]:
-    """``NAME=VALUE`` for one numeric :class:`SynthParams` field, e.g. ``distance_m=500``."""
+def synth_setting(text: str) -> tuple[str, float | int | str]:
+    """``NAME=VALUE`` for one :class:`SynthParams` field, e.g. ``distance_m=500`` or
+    ``shimmer_spectrum=vonkarman``."""
     name, _, value = text.partition("=")
     kinds = {f.name: f.type for f in fields(SynthParams)}
-    if kinds.get(name) not in ("int", "float"):
-        numeric = ", ".join(n for n, k in kinds.items() if k in ("int", "float"))
-        raise argparse.ArgumentTypeError(f"{name!r}: not a numeric scene setting ({numeric})")
+    if kinds.get(name) not in ("int", "float", "str"):
+        known = ", ".join(n for n, k in kinds.items() if k in ("int", "float", "str"))
+        raise argparse.ArgumentTypeError(f"{name!r}: not a scene setting ({known})")
+    if kinds[name] == "str":
+        return name, value
     try:
         return name, int(value) if kinds[name] == "int" else float(value)
     except ValueError:

@@ -12,9 +12,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rigkit.capture import create_session
+from rigkit.synth.demo import prepare_demo
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
-from rigkit.synth.demo import prepare_demo
 from rigkit.tui.screens import PositionScreen
 from rigkit.tui.widgets import PixelView
 

@@ -127,6 +127,8 @@ def run_depth(
     if loaded.shimmer is not None:
         found.append(burst_warning(profile, *loaded.shimmer, result.median_depth_m, length))
     shortfalls = tuple(filter(None, found))
+    if result.lens_fit is not None and (lens_note := result.lens_fit.warning()):
+        warnings = (*warnings, lens_note)
     return DepthRun(
         result=result,
         left=loaded.images[0],

@@ -40,9 +40,10 @@ from rigkit.reporting.previews import preview_set
 from rigkit.reporting.verdict import Verdict, judge
 
 StageReport = Callable[[str, float], None]
-RESULT_BYTES_PER_PIXEL = 12
+RESULT_BYTES_PER_PIXEL = 13
 """What a run writes into ``results/``, per pixel of a frame: depth and sigma (float32
-each) and the previews (10.9 bytes per pixel measured on the bundled example)."""
+each), the previews, grey and flags (10.9 bytes per pixel measured on the bundled
+example before flags.png, which adds at most one)."""
 
 
 def new_run_id() -> str:
@@ -120,7 +121,9 @@ def _process_locked(
         "sigma.npy": result.sigma,
         "depth.json": json.dumps(meta, indent=2),
         "grey.png": run.left_grey(),
-        **preview_set(run.left, result.depth, result.sigma, session.targets, rows),
+        "flags.png": result.flags(),
+        **preview_set(run.left, result.depth, result.sigma, session.targets, rows,
+                      result.disagree),
     }
     if rows:
         files["comparisons.csv"] = csv_text(rows)

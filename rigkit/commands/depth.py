@@ -184,6 +184,7 @@ def _outputs(run: Any, out: Path, preview: bool) -> dict[str, Any]:
         f"{out.stem}.sigma.npy": result.sigma,
         f"{out.stem}.json": json.dumps(run.metadata(), indent=2),
         f"{out.stem}.grey.png": run.left_grey(),
+        f"{out.stem}.flags.png": result.flags(),
     }
     if preview:
         lo, hi = depth_range(result.depth)

@@ -21,6 +21,7 @@ flags given explicitly override the rig profile; without --rig the defaults are 
 """
 # rigkit.synth.shimmer.SPECTRA, named here so that --help does not import the renderer
 SHIMMER_SPECTRA = ("gaussian", "fine", "vonkarman")
+BACKDROPS = ("terrain", "void")  # rigkit.synth.scene.BACKDROPS, without importing numpy
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -85,6 +86,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="cloud shadow drift between two captures, m (default 6)")
     world.add_argument("--facades", type=int, metavar="N",
                        help="building facades: periodic windows and plain walls, alternately")
+    world.add_argument("--backdrop", choices=BACKDROPS,
+                       help="terrain (default): ground and sky behind the objects; void: "
+                       "no ground, an exactly black background")
     p.add_argument("--session", action="store_true",
                    help="write a capture session (raw/, session.yaml, rig.yaml) with "
                    "simulated laser targets, ready for `rigkit process`")
@@ -175,6 +179,7 @@ _CONDITION_FLAGS = {
     "shadows": "n_shadows",
     "shadow_drift": "shadow_drift_m",
     "facades": "n_facades",
+    "backdrop": "backdrop",
 }
 
 

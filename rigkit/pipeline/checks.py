@@ -25,8 +25,13 @@ MAX_RIGHT_SCALE_CHANGE = 0.01
 
 
 def affine_scale(affine: np.ndarray) -> float:
-    """The scale of a (2, 3) affine map between two views (other / left size)."""
-    return float(np.sqrt(abs(np.linalg.det(affine[:, :2]))))
+    """The scale of a (2, 3) affine map between two views (other / left size), along
+    the image's columns: the norm of its second row, which a turn of the view leaves
+    alone. Left/right parallax stretches or compresses the rows only (a facade turned
+    away from the rig: a right view that was 0.981x the left one along the rows, and
+    1.000x along the columns, read as 0.991x by the determinant, smaller than the back
+    view); a zoom or the back view's magnification scales both."""
+    return float(np.hypot(affine[1, 0], affine[1, 1]))
 
 
 def roles_problem(right: float, back: float, baseline_lb_m: float) -> str | None:

@@ -8,12 +8,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from rigkit.errors import InputError
+from rigkit.errors import InputError, PipelineError
 from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
+from rigkit.pipeline.agreement import view_agreement
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
 from rigkit.pipeline.checks import check_distinct, check_parallax, check_roles
 from rigkit.pipeline.depth import to_left
-from rigkit.pipeline.distortion import LensFit, fit_distortion
+from rigkit.pipeline.distortion import LensFit, refine_lens
 from rigkit.pipeline.features import Matches, match_to, prepare_left
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, footprints, pseudo_rectify, warp_pair
@@ -59,6 +60,9 @@ class DepthResult:
     filled from its background neighbour); NaN where no depth. filled: (H, W) bool,
     pixels whose depth comes from hole filling rather than a match. no_surface: (H, W)
     bool, pixels with nothing to match (sky, blank or clipped areas): NaN in depth.
+    disagree: (H, W) bool, pixels whose depth the right or back view contradicted
+    (something moved between the captures; :mod:`rigkit.pipeline.agreement`), with a
+    margin around them: NaN in depth.
     ``distortion``: the lens the depth went through (OpenCV ``k1, k2, p1, p2, k3``);
     ``lens_fit``: how it was fitted from the views (None: taken as given).
     ``median_depth_m``: the median of ``depth`` (NaN where there is none);
@@ -71,6 +75,7 @@ class DepthResult:
     sigma: np.ndarray
     filled: np.ndarray
     no_surface: np.ndarray
+    disagree: np.ndarray
     rectification: Rectification
     ambiguity: Ambiguity
     disparity: np.ndarray
@@ -83,6 +88,16 @@ class DepthResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     median_depth_m: float = float("nan")
     offset_depth_fraction: float = float("nan")
+
+    def flags(self) -> np.ndarray:
+        """(H, W) uint8, what each pixel's depth rests on, as bits (``FLAG_*``): matched
+        (1), filled from a neighbour (2), nothing to match (4), views disagree (8); 0
+        where there is no depth for another reason (outside the right view)."""
+        out = np.where(np.isfinite(self.depth), FLAG_MATCHED, 0).astype(np.uint8)
+        out[self.filled] = FLAG_FILLED
+        out[self.no_surface] |= FLAG_NO_SURFACE
+        out[self.disagree] |= FLAG_DISAGREE
+        return out
 
     def offset_warning(self) -> str | None:
         """See :func:`offset_warning`."""
@@ -124,6 +139,7 @@ class DepthResult:
             },
             "density": float(valid.mean()),
             "no_surface_fraction": float(self.no_surface.mean()),
+            "views_disagree_fraction": float(self.disagree.mean()),
             "depth_range_m": [float(np.nanmin(self.depth)), float(np.nanmax(self.depth))]
             if valid.any()
             else None,
@@ -132,6 +148,8 @@ class DepthResult:
 
 
 Progress = Callable[[str, float], None]
+FLAG_MATCHED, FLAG_FILLED, FLAG_NO_SURFACE, FLAG_DISAGREE = 1, 2, 4, 8
+"""Bits of :meth:`DepthResult.flags` (``flags.png`` in a session's results)."""
 OFFSET_WARNING_FRACTION = 0.003
 """Above this relative depth error from the offset alone (one sigma) the result says
 so: the field issue's bar for a scene's median bias, which bursts meet."""
@@ -212,22 +230,29 @@ def estimate_depth(
     left_fp, right_fp = footprints(rect, size, scale, lens=lens)
     surface = surface_mask(rl, left_fp, s.min_texture, s.texture_window_px)
     disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
-    lap("stereo", 0.8)
+    lap("stereo", 0.75)
     amb = remove_ambiguity(
         m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
     )
+    agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, lens, rig.baseline_lr_m,
+                           rig.baseline_lb_m, s.min_agreement, s.agreement_window_px,
+                           s.agreement_margin_px)
+    if agree.disagree.any():
+        disparity = np.where(agree.disagree, np.nan, disparity).astype(np.float32)
+        amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s)
+    lap("agreement", 0.8)
     if lens_fit is not None:  # the lens is not exact: its uncertainty moves the offset too
         offset_sigma = float(np.hypot(amb.offset_sigma_px, lens_fit.offset_sigma_px))
         amb = replace(amb, offset_sigma_px=offset_sigma)
     lap("ambiguity", 0.85)
-    dense, holes = fill_holes(disparity, s.fill_max_gap_px)
+    dense, holes = fill_holes(disparity, s.fill_max_gap_px, barrier=agree.disagree)
     # Holes filled across a footprint edge would extrapolate into unseen ground, and
     # a hole with no surface in it (sky between two buildings) is no occlusion.
     dense = restrict_to_footprints(np.where(surface, dense, np.nan), left_fp, right_fp)
     holes &= np.isfinite(dense)
-    depth, both = to_left(dense, np.dstack([holes, ~surface & left_fp]), scale, rect,
-                          amb.beta, rig.baseline_lr_m, left.shape, lens)
-    filled, no_surface = both[..., 0], both[..., 1]
+    depth, masks = to_left(dense, np.dstack([holes, ~surface & left_fp, agree.disagree & left_fp]),
+                           scale, rect, amb.beta, rig.baseline_lr_m, left.shape, lens)
+    filled, no_surface, disagree = masks[..., 0], masks[..., 1], masks[..., 2]
     sigma = _depth_sigma(depth, filled, rig, amb, s)
     known = depth[np.isfinite(depth)]  # np.nanmedian's value, at half its cost
     z_median = float(np.median(known)) if known.size else float("nan")
@@ -238,6 +263,7 @@ def estimate_depth(
         sigma=sigma,
         filled=filled,
         no_surface=no_surface,
+        disagree=disagree,
         rectification=rect,
         ambiguity=amb,
         disparity=disparity,
@@ -278,11 +304,27 @@ def _lens(
     if not s.distortion_terms:
         return given, None
     start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
-    fit = fit_distortion(
+    fit = refine_lens(
         raw_lr, raw_lb, start, given, rig.baseline_lr_m, rig.baseline_lb_m, s.distortion_terms,
         s.principal_point_sigma * size[0], s.jackknife_blocks,
     )
     return Lens(rig.focal_px, size, fit.distortion), fit
+
+
+def _without_disagreeing(
+    amb: Ambiguity, m_lb: Matches, disparity: np.ndarray, scale: float,
+    rect: Rectification, rig: RigGeometry, s: PipelineSettings,
+) -> Ambiguity:
+    """Ambiguity removal again, on the ``disparity`` without the pixels where the views
+    disagree: what moved between the captures must not pull the offset. Where too few
+    back-view matches remain for that, the first fit ``amb`` stands (its robust loss
+    has already discounted the matches that fit no single pose)."""
+    try:
+        return remove_ambiguity(
+            m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
+        )
+    except PipelineError:
+        return amb
 
 
 def _ideal(m: Matches, lens: Lens) -> Matches:

@@ -74,10 +74,19 @@ class Reference:
     corners: np.ndarray
 
 
+SIFT_CONTRAST = 0.01
+"""SIFT's contrast threshold (OpenCV's default is 0.04). Fine, low-contrast texture
+(hazy ground at 1/4.5 of full resolution) gives few features at the default: on a
+scene with two plain buildings, 276 left features and 26 agreeing matches, which
+agreed on a half turn of the view; at 0.01, 3206 features and 450 agreeing matches on
+the true alignment, for the same time."""
+
+
 def _sift(image: np.ndarray, scale: float) -> tuple[tuple, np.ndarray | None]:
     size = (round(image.shape[1] * scale), round(image.shape[0] * scale))
     small = _to_u8(cv2.resize(image, size, interpolation=cv2.INTER_AREA))
-    return cv2.SIFT_create(nfeatures=4000).detectAndCompute(small, None)  # type: ignore[attr-defined]
+    sift = cv2.SIFT_create(nfeatures=4000, contrastThreshold=SIFT_CONTRAST)  # type: ignore[attr-defined]
+    return sift.detectAndCompute(small, None)
 
 
 def prepare_left(
@@ -115,10 +124,29 @@ def _coarse_affine(ref: Reference, other: np.ndarray, what: str) -> tuple[np.nda
             f"{what}: only {n_inl} of {len(good)} feature matches agree on one alignment; "
             "are these views of the same scene?"
         )
+    _check_alignment(A, what)
     # Back to full-resolution pixel coordinates (pixel centres at integers).
     S = np.array([[scale, 0, 0.5 * scale - 0.5], [0, scale, 0.5 * scale - 0.5], [0, 0, 1]])
     A3 = np.linalg.inv(S) @ np.vstack([A, [0, 0, 1]]) @ S
     return A3[:2], n_inl
+
+
+MAX_TURN_DEG = 45.0  # a rig's views are turned by a few degrees about the axis at most
+
+
+def _check_alignment(A: np.ndarray, what: str) -> None:
+    """PipelineError where the (2, 3) affine map found between two views is no
+    alignment of two views of one rig: mirrored, turned by more than MAX_TURN_DEG, or
+    scaled by more than 2x (repeated structure, such as a facade's windows, can agree
+    on one)."""
+    det = float(np.linalg.det(A[:, :2]))
+    turn = float(np.degrees(np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])))
+    if det <= 0 or abs(turn) > MAX_TURN_DEG or not 0.25 < det < 4:
+        raise PipelineError(
+            f"{what}: the features agree only on an alignment turned by {turn:.0f} deg "
+            f"and scaled by {np.sqrt(abs(det)):.2f}x, which no rig gives; are these views "
+            "of the same scene, with enough texture?"
+        )
 
 
 def _corners(left: np.ndarray, n_points: int) -> np.ndarray:

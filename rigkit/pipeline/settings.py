@@ -35,6 +35,11 @@ class PipelineSettings:
     pipeline assumes: its effect is added to the standard errors of the offset and of
     the fitted lens (0: the views share one principal point, e.g. one camera moved
     between positions).
+    Views that disagree: ``min_agreement`` the zero-mean normalised cross-correlation
+    over ``agreement_window_px`` (stereo px) below which the right or the back view
+    contradicts a depth (something moved between the captures): that pixel and
+    ``agreement_margin_px`` around it get no depth (1 would refuse nearly all, 0 only
+    a view that shows the negative; :mod:`rigkit.pipeline.agreement`).
     Uncertainty: ``stereo_noise_px`` and ``filled_noise_px`` the disparity error (px at
     the stereo resolution) of a matched and of a filled pixel.
     """
@@ -49,6 +54,9 @@ class PipelineSettings:
     min_texture: float = 3.0
     texture_window_px: int = 9
     edge_window_px: int = 7
+    min_agreement: float = 0.5
+    agreement_window_px: int = 9
+    agreement_margin_px: int = 4
     jackknife_blocks: int = 4
     principal_point_sigma: float = 0.005
     stereo_noise_px: float = 0.25
@@ -61,6 +69,11 @@ class PipelineSettings:
                 raise ValueError(f"{f.name} must be a non-negative number, got {value!r}")
         if not 0 < self.stereo_scale <= 1:
             raise ValueError(f"stereo_scale must be in (0, 1], got {self.stereo_scale!r}")
+        if self.min_agreement > 1:
+            raise ValueError(f"min_agreement must be at most 1, got {self.min_agreement!r}")
+        if self.agreement_window_px < 3:
+            raise ValueError(f"agreement_window_px must be at least 3, got "
+                             f"{self.agreement_window_px}")
         if self.distortion_terms > 2:
             raise ValueError(f"distortion_terms must be 0, 1 or 2, got {self.distortion_terms}")
         if self.jackknife_blocks < 2:

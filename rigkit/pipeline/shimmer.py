@@ -15,7 +15,7 @@ tracker without knowing either. ``c`` is the Gaussian correlation length the
 synthetic scenes draw their shimmer with (:func:`rigkit.synth.shimmer.shimmer_field`);
 real turbulence has a longer tail, so for it ``c`` is the best Gaussian match.
 
-The measurement runs on a central crop at full resolution: shimmer of a few tenths of
+The measurement runs on the most textured crop at full resolution: shimmer of a few tenths of
 a pixel would be lost in a reduced image, and its statistics are the same across the
 frame.
 """
@@ -32,9 +32,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.distance import pdist
 
 from rigkit.errors import PipelineError
-from rigkit.pipeline.burst import frame_shift
+from rigkit.pipeline.burst import frame_shift, textured_crop
 
-CROP_PX = 2048  # side of the central crop measured on, full-resolution px
+CROP_PX = 2048  # side of the (most textured) crop measured on, full-resolution px
 MAX_POINTS = 2000  # points tracked between the frames
 FB_MAX_PX = 0.1  # forward-backward disagreement above which a track is dropped
 MIN_POINTS = 100
@@ -69,7 +69,8 @@ def measure_shimmer(first: np.ndarray, other: np.ndarray, what: str = "burst") -
     frames have too little texture to track or do not show the same view."""
     if first.shape != other.shape:
         raise PipelineError(f"{what}: frames of different sizes")
-    a, b = _crop(first), _crop(other)
+    where = textured_crop(first, CROP_PX)
+    a, b = _crop(first, where), _crop(other, where)
     start, moved = _tracks(a, b, what)
     points, residual = _less_global_map(start, moved, what)
     distance, gamma = pdist(points), 0.25 * pdist(residual, "sqeuclidean")
@@ -92,11 +93,8 @@ def burst_shimmer(
         return None
 
 
-def _crop(image: np.ndarray) -> np.ndarray:
-    h, w = image.shape
-    side_y, side_x = min(CROP_PX, h), min(CROP_PX, w)
-    y0, x0 = (h - side_y) // 2, (w - side_x) // 2
-    return np.clip(np.rint(image[y0 : y0 + side_y, x0 : x0 + side_x]), 0, 255).astype(np.uint8)
+def _crop(image: np.ndarray, where: tuple[slice, slice]) -> np.ndarray:
+    return np.clip(np.rint(image[where]), 0, 255).astype(np.uint8)
 
 
 def _tracks(a: np.ndarray, b: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:

@@ -164,24 +164,32 @@ def _noise_level(
     return np.interp(mean, centres, envelope).astype(np.float32)
 
 
-def fill_holes(disp: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
+def fill_holes(
+    disp: np.ndarray, max_gap: int, barrier: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Fill gaps of at most ``max_gap`` px along rows with the farther (smaller-disparity)
     of the two valid neighbours, as Hirschmueller (2008) does for occlusions: a hole
     next to a depth edge belongs to the occluded background. Gaps that touch the image
-    border are left NaN (nothing to interpolate from on that side).
+    border, or a ``barrier`` pixel (where the views disagree: nothing there may be
+    carried across), are left NaN.
 
-    disp: (H, W) float32 with NaN holes. Returns (filled disparity, bool mask of filled).
+    disp: (H, W) float32 with NaN holes; barrier: (H, W) bool or None.
+    Returns (filled disparity, bool mask of filled).
     """
     h, w = disp.shape
     valid = np.isfinite(disp)
+    end = valid if barrier is None else valid | barrier
     idx = np.broadcast_to(np.arange(w), (h, w))
-    prev_i = np.maximum.accumulate(np.where(valid, idx, -1), axis=1)
-    next_i = np.minimum.accumulate(np.where(valid, idx, w)[:, ::-1], axis=1)[:, ::-1]
+    prev_i = np.maximum.accumulate(np.where(end, idx, -1), axis=1)
+    next_i = np.minimum.accumulate(np.where(end, idx, w)[:, ::-1], axis=1)[:, ::-1]
     gap = next_i - prev_i - 1
-    hole = ~valid & (prev_i >= 0) & (next_i < w) & (gap <= max_gap)
+    hole = ~end & (prev_i >= 0) & (next_i < w) & (gap <= max_gap)
     rows = np.broadcast_to(np.arange(h)[:, None], (h, w))
-    left_val = disp[rows[hole], prev_i[hole]]
-    right_val = disp[rows[hole], next_i[hole]]
+    hr, pi, ni = rows[hole], prev_i[hole], next_i[hole]
+    if barrier is not None:  # both ends must be matched pixels, not a barrier
+        ok = valid[hr, pi] & valid[hr, ni]
+        hole[hole] = ok
+        hr, pi, ni = hr[ok], pi[ok], ni[ok]
     out = disp.copy()
-    out[hole] = np.minimum(left_val, right_val)
+    out[hole] = np.minimum(disp[hr, pi], disp[hr, ni])
     return out, hole

@@ -13,6 +13,7 @@ from rigkit.capture.comparisons import Comparison
 from rigkit.capture.session import Target
 
 PREVIEW_WIDTH = 1600
+MOVED_TINT = (128, 0, 128)  # BGR added to half the grey where the views disagree
 
 
 def colorize(values: np.ndarray, lo: float, hi: float, label: str) -> np.ndarray:
@@ -153,15 +154,20 @@ def preview_set(
     sigma: np.ndarray,
     targets: Sequence[Target],
     rows: Sequence[Comparison],
+    disagree: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """What ``rigkit process`` writes to ``results/``: ``depth.png`` and ``left.png``
     with the targets marked, and ``sigma.png`` (1-sigma error in % of depth).
 
-    ``left``: (H, W) grey in [0, 255]; ``depth``, ``sigma``: (H, W) metres."""
+    ``left``: (H, W) grey in [0, 255]; ``depth``, ``sigma``: (H, W) metres;
+    ``disagree``: (H, W) bool, where the views disagreed (something moved): tinted
+    magenta in ``left.png``."""
     lo, hi = depth_range(depth)
     with np.errstate(invalid="ignore", divide="ignore"):
         relative = 100 * sigma / depth
     grey = np.repeat(np.clip(left, 0, 255).astype(np.uint8)[..., None], 3, axis=2)
+    if disagree is not None:
+        grey[disagree] = grey[disagree] // 2 + np.array(MOVED_TINT, np.uint8)
     return {
         "depth.png": mark_targets(colorize(depth, lo, hi, "depth z (m)"), depth.shape,
                                   targets, rows),

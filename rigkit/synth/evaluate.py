@@ -1,9 +1,12 @@
 """Depth accuracy against ground truth, with the paper's metric (Table 1).
 
-A left pixel is judged when it has ground-truth depth and the right camera sees the
-same surface point (inside the right image and not occluded there, from the ground
-truth poses and the right view's own depth). A judged pixel without an estimate
-(NaN) counts as a miss: it is in the denominator but under no threshold.
+A left pixel is judged when it has ground-truth depth, a surface with texture (not a
+plain wall or an empty backdrop: ``ground_truth/flat_left.npy``, where no method can
+match and rigkit gives no depth on purpose) and the right camera sees the same surface
+point (inside the right image and not occluded there, from the ground truth poses and
+the right view's own depth). A judged pixel without an estimate (NaN) counts as a
+miss: it is in the denominator but under no threshold. *False depth* is the share of
+the pixels with nothing to match (no surface, or a flat one) that got a depth.
 
 Where the world moves between the captures (a scene with movers or cloud shadows has
 ``ground_truth/moved_left.npy``, :mod:`rigkit.synth.changes`), :class:`ChangeMetrics`
@@ -64,8 +67,8 @@ class Metrics:
     median_bias: float  # median of (estimate - truth) / truth over estimated pixels
     failed: bool = False
     reason: str = ""
-    # Pixels with no surface at all (sky, empty background) that received a depth, as
-    # a fraction of those pixels; NaN when the scene has none.
+    # Pixels with nothing to match (sky, empty background, a flat surface) that
+    # received a depth, as a fraction of those pixels; NaN when the scene has none.
     false_depth: float = math.nan
     changes: ChangeMetrics | None = None  # scenes where the world moves (module docstring)
 
@@ -98,12 +101,14 @@ def offset_error_px(truth: SceneTruth, depth: np.ndarray, focal_px: float) -> fl
 
 
 def depth_metrics(
-    estimate: np.ndarray, truth: np.ndarray, judged: np.ndarray, scene: str = ""
+    estimate: np.ndarray, truth: np.ndarray, judged: np.ndarray, scene: str = "",
+    flat: np.ndarray | None = None,
 ) -> Metrics:
     """Score ``estimate`` against ``truth`` over the ``judged`` mask.
 
     estimate, truth: (H, W) float, metres, z in the left camera (NaN = none);
-    judged: (H, W) bool.
+    judged: (H, W) bool; flat: (H, W) bool, surfaces with no texture (None: none),
+    counted with the no-surface pixels for false depth.
     """
     if estimate.shape != truth.shape:
         raise InputError(
@@ -119,7 +124,7 @@ def depth_metrics(
     rel = np.abs(est[has] - gt[has]) / gt[has]
     fractions = [float(np.count_nonzero(rel < t)) / n for t in THRESHOLDS]
     bias = float(np.median((est[has] - gt[has]) / gt[has])) if has.any() else math.nan
-    no_surface = ~np.isfinite(truth)
+    no_surface = ~np.isfinite(truth) if flat is None else ~np.isfinite(truth) | flat
     false_depth = (
         float(np.isfinite(estimate[no_surface]).mean()) if no_surface.any() else math.nan
     )
@@ -204,8 +209,10 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None) -> Metrics:
         est = np.load(estimate_path)
     except (OSError, ValueError) as exc:
         return failed_metrics(name, f"unreadable estimate {estimate_path}: {exc}")
-    depth, judged = truth.depth("left"), visible_in_right(truth)
-    metrics = depth_metrics(est, depth, judged, name)
+    depth, judged, flat = truth.depth("left"), visible_in_right(truth), truth.flat()
+    if flat is not None:
+        judged &= ~flat
+    metrics = depth_metrics(est, depth, judged, name, flat)
     changes = truth.changes()
     if changes is None:
         return metrics

@@ -8,6 +8,8 @@ Layout of ``SCENE_DIR/`` (documented in docs/synthetic-scenes.md)::
     ground_truth/depth_left.npy          (H, W) float32, metres, z in the left camera, NaN = no hit
     ground_truth/depth_right.npy         same for the right camera (for visibility)
     ground_truth/depth_back.npy          same for the back camera
+    ground_truth/flat_left.npy           (H, W) bool, left pixels whose surface has no texture
+                                         (a plain wall, an empty backdrop: Layers.flat)
     ground_truth/moved_left.npy          (H, W) bool, left pixels a mover covers in any view
     ground_truth/shadow_changed_left.npy (H, W) bool, left pixels whose cloud shadow changes
                                          (both only for scenes with movers or cloud shadows;
@@ -35,6 +37,7 @@ from rigkit.synth.shapes import VIEWS
 SCENE_FILE = "scene.yaml"
 MOVED_FILE = "moved_left.npy"
 SHADOW_FILE = "shadow_changed_left.npy"
+FLAT_FILE = "flat_left.npy"
 
 
 def _camera_dict(cam: Camera, euler: tuple[float, float, float]) -> dict[str, object]:
@@ -76,6 +79,7 @@ def write_scene(
         write_npy(out_dir / "ground_truth" / f"depth_{name}.npy", layers.depth)
         if name == "left":
             left = layers
+            write_npy(out_dir / "ground_truth" / FLAT_FILE, layers.flat())
         timings[name] = time.perf_counter() - t0
     if left is not None and (scene.movers or scene.shadows):
         truth = out_dir / "ground_truth"
@@ -123,6 +127,12 @@ class SceneTruth:
         if not (folder / MOVED_FILE).is_file():
             return None
         return np.load(folder / MOVED_FILE), np.load(folder / SHADOW_FILE)
+
+    def flat(self) -> np.ndarray | None:
+        """(H, W) bool, left pixels whose surface has no texture (:meth:`Layers.flat`),
+        or None for a scene folder written before rigkit recorded them."""
+        path = self.path / "ground_truth" / FLAT_FILE
+        return np.load(path) if path.is_file() else None
 
     def image_path(self, view: str) -> Path:
         """The rendered image; in a synthetic session it lives in ``raw/``."""

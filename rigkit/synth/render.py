@@ -186,6 +186,10 @@ def sphere_corners(s: Sphere) -> np.ndarray:
     return np.array(s.center) + signs * s.radius
 
 
+FLAT_WINDOW_PX = 9  # full-resolution px, the stereo window at the pipeline's half scale
+FLAT_MAX_STEP = 0.25 / 255  # a quarter grey level: far below any sensor's noise
+
+
 @dataclass(frozen=True)
 class Layers:
     """One rendered view. radiance: (H, W) float32 in [0, 1] before the PSF and noise;
@@ -196,6 +200,17 @@ class Layers:
     radiance: np.ndarray
     depth: np.ndarray
     surface: np.ndarray
+
+    def flat(self, window: int = FLAT_WINDOW_PX, max_step: float = FLAT_MAX_STEP) -> np.ndarray:
+        """(H, W) bool: pixels with a surface whose radiance does not change along the
+        rows within the ``window`` around them (RMS step between neighbouring columns
+        below ``max_step``, radiance units): a plain wall, a window pane, the inside of
+        a horizontal edge, an empty backdrop. Nothing there can be matched along the
+        epipolar lines, by any method; a depth given there comes from its neighbours."""
+        step = np.zeros_like(self.radiance)
+        step[:, 1:] = np.diff(self.radiance, axis=1) ** 2
+        energy = cv2.boxFilter(step, -1, (window, window))
+        return (energy < max_step**2) & np.isfinite(self.depth)
 
 
 def view_objects(scene: Scene, name: str) -> tuple[Box | Sphere, ...]:
@@ -249,6 +264,7 @@ def render_layers(
     surface = np.empty((H, W), np.int16)
     objects = objects_in_view(cam, view_objects(scene, name))
     light = np.array(scene.light) / np.linalg.norm(scene.light)
+    void = scene.params.backdrop == "void"
     done = [0]
 
     def chunk(r0: int) -> None:
@@ -257,7 +273,7 @@ def render_layers(
         d = cam.rays(u, v)
         t = _terrain_t(scene, cam.C, d, seed_t[r0:r1].copy(), iters=3)
         x, y = cam.C[0] + t * d[..., 0], cam.C[1] + t * d[..., 1]
-        t = np.where(scene.terrain.above_skyline(x, y), np.inf, t)
+        t = np.where(scene.terrain.above_skyline(x, y) | void, np.inf, t)
         gx, gy = scene.terrain.gradient(x, y)
         normal = np.stack([gx, gy, -np.ones_like(gx)], axis=-1)
         st = np.stack([x, y], axis=-1)
@@ -286,7 +302,7 @@ def render_layers(
             X = cam.C + np.where(hit, t, 0)[..., None] * d
             surf = surf * shadow_factor(scene.shadows, X, name, scene.light,
                                         scene.params.distance_m)
-        sky = sky_radiance(d)
+        sky = np.zeros(t.shape, np.float32) if void else sky_radiance(d)
         lit = _haze(scene, surf, t * np.linalg.norm(d, axis=-1), sky)
         radiance[r0:r1] = np.where(hit, lit, sky)
         depth[r0:r1] = np.where(hit, t, np.nan)  # rays have unit camera-z

@@ -46,6 +46,8 @@ from rigkit.synth.shadows import CloudShadow, make_shadows
 from rigkit.synth.shapes import Box, Sphere, Terrain, TextureMap, random_texture
 from rigkit.synth.shimmer import SPECTRA
 
+BACKDROPS = ("terrain", "void")
+
 
 @dataclass(frozen=True)
 class SynthParams:
@@ -83,6 +85,9 @@ class SynthParams:
     n_shadows: int = 0  # cloud shadows drifting between captures (rigkit.synth.shadows)
     shadow_drift_m: float = 6.0  # how far a cloud shadow moves between two captures, m
     n_facades: int = 0  # building facades: windowed and plain walls (rigkit.synth.facades)
+    # "terrain": the objects stand on textured ground under a sky; "void": no ground,
+    # an exactly black background (as the paper's own elephant scene has)
+    backdrop: str = "terrain"
 
     def validate(self) -> None:
         checks = {
@@ -110,6 +115,7 @@ class SynthParams:
             "n_shadows": 0 <= self.n_shadows <= 50,
             "shadow_drift_m": self.shadow_drift_m >= 0,
             "n_facades": 0 <= self.n_facades <= 50,
+            "backdrop": self.backdrop in BACKDROPS,
         }
         for name, ok in checks.items():
             if not ok:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigkit.errors import InputError
-from rigkit.pipeline.burst import median, stack_burst
+from rigkit.pipeline.burst import frame_shift, median, stack_burst, textured_crop
 from rigkit.synth.shimmer import shimmer_field
 
 
@@ -61,3 +61,26 @@ def test_median_is_numpys_and_keeps_the_frames(n: int) -> None:
     assert stacked.dtype == np.float32
     assert np.array_equal(stacked, np.median(np.stack(frames), axis=0).astype(np.float32))
     assert all(np.array_equal(f, k) for f, k in zip(frames, kept, strict=True))
+
+
+def test_shift_is_measured_where_there_is_texture_not_on_a_plain_wall() -> None:
+    # A plain wall fills the middle of the frame; the texture is at one side. The
+    # central crop saw only noise there and found shifts of tens of px.
+    rng = np.random.default_rng(7)
+    img = np.full((1200, 1600), 90.0, np.float32)
+    img[:, :250] = _texture(rng)[:, :250].repeat(4, axis=0)[:1200]
+    frames = [img + rng.normal(0, 2.0, img.shape).astype(np.float32) for _ in range(2)]
+    frames[1] = np.roll(frames[1], (1, 2), axis=(0, 1))
+    rows, cols = textured_crop(img, 1024)
+    assert cols.stop <= 1024 and cols.start == 0  # the textured side
+    dx, dy = frame_shift(frames[0], frames[1])
+    assert dx == pytest.approx(2.0, abs=0.2) and dy == pytest.approx(1.0, abs=0.2)
+
+
+def test_shift_leaves_whole_frame_crops_unchanged() -> None:
+    # A crop the size of the frame is a view of it: OpenCV's phase correlation must
+    # not window the caller's frames in place.
+    img = _texture(np.random.default_rng(8))
+    kept = img.copy()
+    frame_shift(img, img.copy())
+    assert np.array_equal(img, kept)

@@ -12,7 +12,12 @@ import pytest
 
 from rigkit.geometry import Camera, euler_to_matrix, focal_from_fov, intrinsics
 from rigkit.pipeline.ambiguity import spatial_blocks
-from rigkit.pipeline.distortion import _cluster_covariance, corner_shift_px, fit_distortion
+from rigkit.pipeline.distortion import (
+    _cluster_covariance,
+    corner_shift_px,
+    fit_distortion,
+    refine_lens,
+)
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import pseudo_rectify
@@ -173,3 +178,48 @@ def _field_at(pts: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     m = pts.astype(np.float32).reshape(-1, 1, 2)
     return np.stack([cv2.remap(f, m[..., 0], m[..., 1], cv2.INTER_LINEAR).ravel()
                      for f in (dx, dy)], axis=1)
+
+
+def _refine(m_lr: Matches, m_lb: Matches, start, pp_sigma_px: float = 0.0):
+    lens = Lens(F, (W, H), start)
+    rect = pseudo_rectify(m_lr, F, (W, H))
+    return refine_lens(m_lr, m_lb, rect, lens, 2.0, 2.0, 1, pp_sigma_px)
+
+
+def test_a_profile_of_another_shape_is_rejected_and_the_lens_fitted_from_the_views() -> None:
+    # The lens bends with k1 alone; the profile given is another lens's (k1, k2, k3 that
+    # nearly cancel at the corner, like lensfun's P1000 at 71.9 mm on the example).
+    k1 = _k1_for_corner(0.002)
+    rc2 = (np.hypot(W - 1, H - 1) / 2 / F) ** 2
+    profile = (8 * k1, -12 * k1 / rc2, 0.0, 0.0, 6 * k1 / rc2**2)
+    tracks = _tracks(k1, 0.05, np.random.default_rng(4))
+    fit = _refine(*tracks, start=profile)
+    true = corner_shift_px(Lens(F, (W, H), (k1, 0, 0, 0, 0)))
+    assert fit.start_rejected and fit.significant
+    assert fit.distortion[1:] == (0.0, 0.0, 0.0, 0.0)  # k2, k3 of the profile dropped
+    assert fit.corner_px == pytest.approx(true, abs=max(3 * fit.corner_sigma_px, 0.05 * true))
+    assert "does not fit these frames" in str(fit.warning())
+    # The right profile is kept, and nothing is said.
+    kept = _refine(*tracks, start=(k1, 0, 0, 0, 0))
+    assert not kept.start_rejected and kept.warning() is None
+
+
+def test_a_profile_is_refined_in_k2_as_well() -> None:
+    k1 = _k1_for_corner(0.003)
+    rc2 = (np.hypot(W - 1, H - 1) / 2 / F) ** 2
+    lens = (k1, -0.5 * k1 / rc2, 0.0, 0.0, 0.0)
+    fit = _refine(*_tracks(k1, 0.05, np.random.default_rng(5)), start=lens)
+    assert fit.fitted[1] != lens[1]  # k2 is a term the fit moves (k1 and k2 together)
+
+
+def test_tracks_that_fit_no_pose_do_not_inflate_the_lens_sigma() -> None:
+    # Cars that moved between the captures: 8 % of the tracks land tens of px away.
+    rng = np.random.default_rng(6)
+    m_lr, m_lb = _tracks(0.0, 0.1, rng)
+    clean = _fit(m_lr, m_lb)
+    bad = rng.random(len(m_lb.other)) < 0.08
+    moved = m_lb.other.copy()
+    moved[bad] += rng.uniform(-60, 60, (int(bad.sum()), 2))
+    fit = _fit(m_lr, replace(m_lb, other=moved))
+    assert fit.corner_sigma_px < 2 * clean.corner_sigma_px
+    assert not fit.significant

@@ -117,3 +117,16 @@ def test_a_moving_scene_is_scored_by_what_changed(tmp_path) -> None:
     c = row.changes
     assert c is not None and 0 < c.moved_share < 0.5 and 0 < c.static_share < 1
     assert c.static_under_1 == 1.0 and c.moved_density == 1.0 and c.moved_wrong == 0.0
+
+
+def test_flat_surfaces_are_not_judged_and_depth_there_is_false() -> None:
+    truth = np.full((10, 10), 300.0)
+    truth[0] = np.nan  # no surface (sky)
+    flat = np.zeros((10, 10), bool)
+    flat[1:3] = True  # a plain wall: nothing to match
+    est = truth.copy()
+    est[1] = 300.0  # a depth given on the wall (from its neighbours)
+    est[2] = np.nan
+    m = depth_metrics(est, truth, np.isfinite(truth) & ~flat, "wall", flat)
+    assert m.judged_pixels == 70 and m.under_1 == 1.0
+    assert m.false_depth == pytest.approx(10 / 30)  # the wall row of 30 nothing-to-match

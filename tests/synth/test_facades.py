@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 
+from rigkit.errors import InputError
 from rigkit.synth import SynthParams, generate_scene
 from rigkit.synth.facades import FacadeLook, facade_albedo
 from rigkit.synth.render import render_layers
@@ -81,3 +83,27 @@ def test_generated_facades_have_building_sizes() -> None:
             assert 1.5 <= ps <= 3.5 and 3.0 <= pt <= 3.6
             assert (2 * box.half[0] / ps) % 1 == pytest.approx(0) or (
                 2 * box.half[0] / ps) % 1 == pytest.approx(1)  # whole columns
+
+
+def test_flat_mask_marks_the_plain_wall_and_not_the_terrain() -> None:
+    scene, _ = _head_on(6)
+    plain = scene.boxes[1]
+    layers = render_layers(scene, "left")
+    flat = layers.flat()
+    inner = cv2.erode((layers.surface == plain.texture).astype(np.uint8),
+                      np.ones((15, 15), np.uint8)) > 0
+    assert inner.sum() > 500 and flat[inner].all()
+    terrain = cv2.erode((layers.surface == 0).astype(np.uint8), np.ones((15, 15), np.uint8)) > 0
+    assert flat[terrain].mean() < 0.01
+    assert not flat[~np.isfinite(layers.depth)].any()  # no surface is not a flat surface
+
+
+def test_void_backdrop_is_black_with_no_ground() -> None:
+    scene = generate_scene(replace(BARE, backdrop="void"), 2)
+    layers = render_layers(scene, "left")
+    empty = ~np.isfinite(layers.depth)
+    assert empty.mean() > 0.2 and (layers.surface[empty] == -1).all()
+    assert np.all(layers.radiance[empty] == 0.0)
+    assert not (layers.surface == 0).any()  # the terrain is gone
+    with pytest.raises(InputError, match="backdrop=.mist."):
+        replace(BARE, backdrop="mist").validate()
