@@ -28,8 +28,10 @@ size (never an embedded preview), every frame checked for a picture and, with --
 the profile's image size. Writes DEPTH.npy ((H, W) float32, metres, z in the left camera,
 NaN = no estimate, in the original left image's pixel grid), DEPTH.sigma.npy (one
 standard error, metres), DEPTH.json (frames, rig, warnings, offset, matches, timings),
-DEPTH.grey.png (the left image as the pipeline saw it, 8-bit, for `rigkit export`) and
-with --preview DEPTH.png and DEPTH.sigma.png. Outputs appear together or not at all.
+DEPTH.grey.png (the left image as the pipeline saw it, 8-bit, for `rigkit export`),
+DEPTH.flags.png (what each pixel's depth rests on, as bits: 1 matched, 2 filled, 4 nothing
+to match, 8 the views disagree: something moved between the captures) and with
+--preview DEPTH.png and DEPTH.sigma.png. Outputs appear together or not at all.
 """
 
 

@@ -56,7 +56,8 @@ class Ambiguity:
     standard error: the larger of the least-squares one and a spatial jackknife's
     (which also sees errors shared by neighbouring matches, such as heat shimmer),
     combined with ``principal_point_sigma_px``, the part the principal points'
-    uncertainty carries (where the lens was fitted from the views,
+    uncertainty carries, and ``tilt_sigma_px``, the part large-scale shimmer carries
+    (:func:`_tilt_beta_sigma`) (where the lens was fitted from the views,
     :func:`~rigkit.pipeline.estimate_depth` adds the part its uncertainty carries,
     :attr:`LensFit.offset_sigma_px`);
     ``back_rotvec`` (3,) left->back rotation (rad); ``back_offset_m``:
@@ -74,6 +75,7 @@ class Ambiguity:
     inliers: int
     rms_px: float
     principal_point_sigma_px: float = 0.0
+    tilt_sigma_px: float = 0.0
 
     @property
     def parameters(self) -> np.ndarray:
@@ -191,11 +193,13 @@ def remove_ambiguity(
     f = rect.K[0, 0]
     noise_sigma = f * max(_least_squares_beta_sigma(fit), jack_sigma)
     pp_sigma = f * _principal_point_beta_sigma(fit, settings.principal_point_sigma * _width(rect))
+    tilt_sigma = f * _tilt_beta_sigma(fit, matches.left[ok][inl], pb[inl], rect.K[:2, 2])
     return Ambiguity(
         beta=float(fit.x[0]),
         offset_px=float(f * np.tan(fit.x[0])),
-        offset_sigma_px=float(np.hypot(noise_sigma, pp_sigma)),
+        offset_sigma_px=float(np.sqrt(noise_sigma**2 + pp_sigma**2 + tilt_sigma**2)),
         principal_point_sigma_px=pp_sigma,
+        tilt_sigma_px=tilt_sigma,
         back_rotvec=fit.x[1:4].copy(),
         back_offset_m=(float(fit.x[4]), float(fit.x[5])),
         matches_used=int(ok.sum()),
@@ -245,6 +249,43 @@ def _principal_point_beta_sigma(fit, camera_sigma_px: float) -> float:
     except np.linalg.LinAlgError:
         return float("inf")
     return float(np.linalg.norm(sensitivity) * np.sqrt(2) * camera_sigma_px)
+
+
+def _tilt_beta_sigma(
+    fit, left_px: np.ndarray, back_px: np.ndarray, centre: np.ndarray
+) -> float:
+    """Consider term (rad): the spread of ``beta`` that heat shimmer at the scale of the
+    whole frame carries. Real turbulence moves an image mostly by large-scale tilt (a
+    von Karman spectrum, whose outer scale exceeds the frame); its share that
+    magnifies the back view relative to the left one is exactly what ``beta`` is fitted
+    from, so the fit cannot see it and the block jackknife cannot either (every block
+    moves alike). Its size can be read from the modes the fit does not absorb: an
+    isotropic displacement field has as much variance in each of its two shears as in
+    its magnification, and a curl-free one (the gradient of a phase screen, as
+    turbulence is) twice as much in the magnification. The residuals' affine shears,
+    less what the matches' own scatter puts into them, give that variance; the offset's
+    sensitivity to a back-view magnification turns it into a spread of ``beta``.
+    Two modes of one frame are a small sample (a variance with 2 degrees of freedom),
+    and they also carry what else bends the back view against the left one without
+    being heat (principal points, the lens): on 960 px ideal scenes this term is
+    0.4-0.9 px, on full-resolution ones 0.4-0.6 px, on single frames in von Karman
+    air 0.8-8 px (docs/results.md).
+
+    left_px, back_px: (N, 2) the fitted matches' left and back positions (px), in the
+    order of ``fit``'s residuals; ``centre``: (2,) the principal point (px)."""
+    res = fit.fun.reshape(-1, 2)
+    X = np.c_[left_px - left_px.mean(axis=0), np.ones(len(left_px))]
+    try:
+        coef, *_ = np.linalg.lstsq(X, res, rcond=None)
+        slope_var = float(np.mean((res - X @ coef) ** 2)) * np.linalg.inv(X.T @ X)[:2, :2]
+        (dudx, dvdx), (dudy, dvdy) = coef[0], coef[1]
+        shears = ((dudx - dvdy) / 2) ** 2 + ((dudy + dvdx) / 2) ** 2
+        per_mode = max(shears / 2 - float(np.trace(slope_var)) / 4, 0.0)
+        magnified = (back_px - centre).ravel()  # a magnification eps moves each point by this
+        sensitivity = np.linalg.solve(fit.jac.T @ fit.jac, fit.jac.T @ magnified)[0]
+    except np.linalg.LinAlgError:
+        return float("inf")
+    return float(abs(sensitivity) * np.sqrt(2 * per_mode))
 
 
 def spatial_blocks(px: np.ndarray, blocks: int) -> np.ndarray:

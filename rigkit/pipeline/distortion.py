@@ -18,10 +18,11 @@ measured about the image centre like :class:`~rigkit.pipeline.lens.Lens`. The
 right-camera yaw and the depths trade off (the paper's disparity ambiguity); the back
 view's magnification settles them, as in :mod:`rigkit.pipeline.ambiguity`, so the
 radial terms are fitted against a full three-view geometry. A given distortion (a
-profile, ``camera.distortion``) is the starting point; tangential terms and ``k3`` are
-kept as given. The fitted lens replaces the given one only where the two differ at the
-corner by more than twice the fit's standard error: heat shimmer moves the fit by
-about that much even when the given lens is right.
+profile, ``camera.distortion``) is the starting point, refined in k1 and k2
+(:func:`refine_lens`); tangential terms and ``k3`` are kept as given unless the views
+reject the given lens. The fitted lens replaces the given one only where the views
+rule it out (:func:`_significant`): heat shimmer and principal points apart move the
+fit even when the given lens is right.
 """
 
 from __future__ import annotations
@@ -54,16 +55,17 @@ class LensFit:
     """Result of :func:`fit_distortion`.
 
     ``distortion``: the lens to use, OpenCV ``k1, k2, p1, p2, k3`` (normalised
-    coordinates about the image centre): ``fitted`` where the fit differs from the
-    ``start`` it began from by more than ``SIGNIFICANCE`` times ``corner_noise_sigma_px``
-    at the corner (``significant``), otherwise ``start``; ``corner_px``: how far the
+    coordinates about the image centre): ``fitted`` where the views rule out the
+    ``start`` it began from (``significant``: a chi-square test of the terms' change
+    at ``SIGNIFICANCE``), otherwise ``start``; ``corner_px``: how far the
     fitted lens moves the image corner radially (px, + outwards), with its standard
     error ``corner_sigma_px`` (the tracks' noise and the principal points'
     uncertainty), its part from the noise alone ``corner_noise_sigma_px``, and the
     start's ``start_corner_px``; ``offset_sigma_px``:
     the disparity offset's standard error that the lens's uncertainty carries (px,
     added to the back camera's); ``tracks``: corners seen in all three views that the
-    fit used; ``rms_px``: their reprojection RMS.
+    fit used; ``rms_px``: their reprojection RMS; ``start_rejected``: the views ruled
+    out the given lens and this is the fit from no distortion (:func:`refine_lens`).
     """
 
     distortion: Distortion
@@ -77,7 +79,6 @@ class LensFit:
     tracks: int
     rms_px: float
     corner_noise_sigma_px: float
-    cost: float = float("nan")
     start_rejected: bool = False
 
     def warning(self) -> str | None:
@@ -290,7 +291,6 @@ def fit_distortion(
         tracks=len(tracks[0]),
         rms_px=float(np.sqrt(np.mean(err[err < 3.0] ** 2))),
         corner_noise_sigma_px=noise_sigma,
-        cost=float(fit.cost),
     )
 
 

@@ -93,8 +93,9 @@ class DepthResult:
         """(H, W) uint8, what each pixel's depth rests on, as bits (``FLAG_*``): matched
         (1), filled from a neighbour (2), nothing to match (4), views disagree (8); 0
         where there is no depth for another reason (outside the right view)."""
-        out = np.where(np.isfinite(self.depth), FLAG_MATCHED, 0).astype(np.uint8)
-        out[self.filled] = FLAG_FILLED
+        known = np.isfinite(self.depth)
+        out = np.where(known, FLAG_MATCHED, 0).astype(np.uint8)
+        out[self.filled & known] = FLAG_FILLED
         out[self.no_surface] |= FLAG_NO_SURFACE
         out[self.disagree] |= FLAG_DISAGREE
         return out
@@ -114,6 +115,7 @@ class DepthResult:
             "disparity_offset_px": a.offset_px,
             "disparity_offset_sigma_px": a.offset_sigma_px,
             "disparity_offset_sigma_principal_point_px": a.principal_point_sigma_px,
+            "disparity_offset_sigma_tilt_px": a.tilt_sigma_px,
             "offset_depth_error_fraction": self.offset_depth_fraction
             if np.isfinite(self.offset_depth_fraction)
             else None,

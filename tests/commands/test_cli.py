@@ -33,6 +33,10 @@ def test_depth_writes_depth_sigma_sidecar_and_previews(scene_dir, truth, tmp_pat
     grey = cv2.imread(str(tmp_path / "d.grey.png"), cv2.IMREAD_UNCHANGED)
     assert grey.shape == depth.shape and grey.dtype == np.uint8
     assert meta["left_camera_px"] == {"f": truth.focal_px, "cx": 479.5, "cy": 359.5}
+    # What each depth rests on: matched (1) or filled (2) wherever there is one.
+    flags_png = cv2.imread(str(tmp_path / "d.flags.png"), cv2.IMREAD_UNCHANGED)
+    assert flags_png.shape == depth.shape and flags_png.dtype == np.uint8
+    assert np.all(flags_png[np.isfinite(depth)] & 3) and not np.any(flags_png[~np.isfinite(depth)] & 3)
 
 
 def test_depth_reads_the_rig_profile(scene_dir, truth, tmp_path):

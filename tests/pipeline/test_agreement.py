@@ -68,7 +68,8 @@ def test_flags_say_what_each_depth_rests_on(town) -> None:
     has = np.isfinite(result.depth)
     assert np.all((flags[has] & (FLAG_MATCHED | FLAG_FILLED)) > 0)
     assert np.all(flags[result.disagree] & FLAG_DISAGREE)
-    assert np.all((flags[result.filled] & FLAG_FILLED) > 0)
+    assert np.all((flags[result.filled & has] & FLAG_FILLED) > 0)
+    assert not np.any(flags[~has] & (FLAG_MATCHED | FLAG_FILLED))
 
 
 def test_the_views_agree_where_the_world_stands_still(images, rig, result) -> None:
