@@ -193,7 +193,7 @@ def remove_ambiguity(
     f = rect.K[0, 0]
     noise_sigma = f * max(_least_squares_beta_sigma(fit), jack_sigma)
     pp_sigma = f * _principal_point_beta_sigma(fit, settings.principal_point_sigma * _width(rect))
-    tilt_sigma = f * _tilt_beta_sigma(fit, matches.left[ok][inl], pb[inl], rect.K[:2, 2])
+    tilt_sigma = f * _tilt_beta_sigma(fit, pb[inl], rect.K[:2, 2], rect.row_stretch_sq)
     return Ambiguity(
         beta=float(fit.x[0]),
         offset_px=float(f * np.tan(fit.x[0])),
@@ -251,41 +251,33 @@ def _principal_point_beta_sigma(fit, camera_sigma_px: float) -> float:
     return float(np.linalg.norm(sensitivity) * np.sqrt(2) * camera_sigma_px)
 
 
-def _tilt_beta_sigma(
-    fit, left_px: np.ndarray, back_px: np.ndarray, centre: np.ndarray
-) -> float:
+def _tilt_beta_sigma(fit, back_px: np.ndarray, centre: np.ndarray, stretch_sq: float) -> float:
     """Consider term (rad): the spread of ``beta`` that heat shimmer at the scale of the
     whole frame carries. Real turbulence moves an image mostly by large-scale tilt (a
     von Karman spectrum, whose outer scale exceeds the frame); its share that
-    magnifies the back view relative to the left one is exactly what ``beta`` is fitted
-    from, so the fit cannot see it and the block jackknife cannot either (every block
-    moves alike). Its size can be read from the modes the fit does not absorb: an
-    isotropic displacement field has as much variance in each of its two shears as in
-    its magnification, and a curl-free one (the gradient of a phase screen, as
-    turbulence is) twice as much in the magnification. The residuals' affine shears,
-    less what the matches' own scatter puts into them, give that variance; the offset's
-    sensitivity to a back-view magnification turns it into a spread of ``beta``.
-    Two modes of one frame are a small sample (a variance with 2 degrees of freedom),
-    and they also carry what else bends the back view against the left one without
-    being heat (principal points, the lens): on 960 px ideal scenes this term is
-    0.4-0.9 px, on full-resolution ones 0.4-0.6 px, on single frames in von Karman
-    air 0.8-8 px (docs/results.md).
+    magnifies the back view against the left one is exactly what ``beta`` is fitted
+    from, so the fit cannot see it, and the block jackknife cannot either (every block
+    moves alike). The same air stretches the right view against the left one, and
+    that the rectification can see: its rows still stretch from top to bottom
+    (``stretch_sq``, :attr:`Rectification.row_stretch_sq`), since rotations cannot
+    absorb a stretch. For the gradient of a phase screen (turbulence's tilt) the
+    magnification's variance is 2/3 of that stretch's (the second derivatives of an
+    isotropic field: var(phi_yy) = 3c, var((phi_xx + phi_yy) / 2) = 2c); for two
+    independent axes it is 1/2, so 2/3 holds for both. The offset's sensitivity to a
+    back-view magnification turns it into a spread of ``beta``. One mode of one frame
+    is a small sample; on single frames in von Karman air (docs/results.md) it put
+    the offset's error within 2 sigma where the jackknife alone did not.
 
-    left_px, back_px: (N, 2) the fitted matches' left and back positions (px), in the
-    order of ``fit``'s residuals; ``centre``: (2,) the principal point (px)."""
-    res = fit.fun.reshape(-1, 2)
-    X = np.c_[left_px - left_px.mean(axis=0), np.ones(len(left_px))]
+    back_px: (N, 2) the fitted matches' back positions (px), in the order of ``fit``'s
+    residuals; ``centre``: (2,) the principal point (px)."""
+    if stretch_sq <= 0:
+        return 0.0
+    magnified = (back_px - centre).ravel()  # a magnification eps moves each point by this
     try:
-        coef, *_ = np.linalg.lstsq(X, res, rcond=None)
-        slope_var = float(np.mean((res - X @ coef) ** 2)) * np.linalg.inv(X.T @ X)[:2, :2]
-        (dudx, dvdx), (dudy, dvdy) = coef[0], coef[1]
-        shears = ((dudx - dvdy) / 2) ** 2 + ((dudy + dvdx) / 2) ** 2
-        per_mode = max(shears / 2 - float(np.trace(slope_var)) / 4, 0.0)
-        magnified = (back_px - centre).ravel()  # a magnification eps moves each point by this
         sensitivity = np.linalg.solve(fit.jac.T @ fit.jac, fit.jac.T @ magnified)[0]
     except np.linalg.LinAlgError:
         return float("inf")
-    return float(abs(sensitivity) * np.sqrt(2 * per_mode))
+    return float(abs(sensitivity) * np.sqrt(2.0 / 3.0 * stretch_sq))
 
 
 def spatial_blocks(px: np.ndarray, blocks: int) -> np.ndarray:

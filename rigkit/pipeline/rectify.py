@@ -47,7 +47,11 @@ class Rectification:
     the assumed intrinsics (f, image-centre principal point); ``R_rect`` (left camera ->
     rectified frame) and ``R_lr`` (right camera -> left camera) are the fitted rotations;
     ``shift`` (px) is the horizontal translation applied to the right image after its
-    rotation; ``canvas`` (3, 3) the translation applied to both.
+    rotation; ``canvas`` (3, 3) the translation applied to both; ``row_stretch_sq``
+    (unitless, squared) how much the right view's rows still stretch against the left
+    one's from top to bottom (the slope of the matches' row residuals down the image),
+    beyond what the matches' scatter explains: rotations cannot absorb it, and heat
+    shimmer at the scale of the frame leaves it (:func:`row_stretch_sq`).
     """
 
     H_left: np.ndarray
@@ -61,6 +65,7 @@ class Rectification:
     canvas: np.ndarray
     row_rms_px: float
     inliers: int
+    row_stretch_sq: float = 0.0
 
 
 def _homographies(p: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -121,7 +126,8 @@ def pseudo_rectify(
         )
     fit = least_squares(_row_residuals, fit.x, args=(K, pl[inl], pr[inl]), x_scale=1e-3)
     Hl, Hr, R_lr = _homographies(fit.x, K)
-    rms = float(np.sqrt(np.mean(_row_residuals(fit.x, K, pl[inl], pr[inl])[:-1] ** 2)))
+    rows = _row_residuals(fit.x, K, pl[inl], pr[inl])[:-1]
+    rms = float(np.sqrt(np.mean(rows**2)))
 
     # Canvas: the left image's rectified footprint; right image shifted to small disparities.
     corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], float)
@@ -147,7 +153,21 @@ def pseudo_rectify(
         canvas=canvas,
         row_rms_px=rms,
         inliers=int(inl.sum()),
+        row_stretch_sq=row_stretch_sq(pl[inl], rows),
     )
+
+
+def row_stretch_sq(left_px: np.ndarray, rows: np.ndarray) -> float:
+    """The squared slope, down the image, of the row residuals ``rows`` (N,) px of
+    rectified matches at left pixels ``left_px`` (N, 2), less the part the residuals'
+    scatter gives it (0 where that is all): a plane fitted by least squares."""
+    X = np.c_[left_px - left_px.mean(axis=0), np.ones(len(rows))]
+    try:
+        coef, *_ = np.linalg.lstsq(X, rows, rcond=None)
+        scatter = float(np.mean((rows - X @ coef) ** 2)) * np.linalg.inv(X.T @ X)[1, 1]
+    except np.linalg.LinAlgError:
+        return 0.0
+    return max(float(coef[1]) ** 2 - scatter, 0.0)
 
 
 def warp_pair(

@@ -307,3 +307,32 @@ def write_csv(rows: Sequence[Metrics], path: Path) -> None:
         writer = csv.DictWriter(fh, fieldnames=list(table[0]))
         writer.writeheader()
         writer.writerows(table)
+
+
+GOAL_UNDER_1 = 0.95  # share of judged pixels under 1 % error
+GOAL_BIAS = 0.003  # |median bias|
+GOAL_TARGET_PCT = 1.0  # every laser target's estimate within this of its range
+
+
+def goal_line(m: Metrics, scene_dir: Path) -> tuple[bool, str]:
+    """Whether scene ``m`` meets the accuracy goal the field protocol is for (at least
+    ``GOAL_UNDER_1`` of its judged pixels under 1 % error, |median bias| at most
+    ``GOAL_BIAS``, and, for a processed session, every laser target of its latest run
+    within ``GOAL_TARGET_PCT``), with one line that says so and by how much."""
+    from rigkit.capture.comparisons import read_rows
+
+    if m.failed:
+        return False, f"{m.scene}: goal missed: {m.reason}"
+    said = [f"{100 * m.under_1:.1f} % of pixels under 1 %", f"bias {100 * m.median_bias:+.2f} %"]
+    missed = m.under_1 < GOAL_UNDER_1 or abs(m.median_bias) > GOAL_BIAS
+    table = scene_dir / RESULTS_DIR / "comparisons.csv"
+    if table.is_file():
+        rows = read_rows(table)
+        within = sum(math.isfinite(r.error_pct) and abs(r.error_pct) <= GOAL_TARGET_PCT
+                     for r in rows)
+        said.append(f"{within}/{len(rows)} targets within {GOAL_TARGET_PCT:g} %")
+        missed |= within < len(rows)
+    goal = (f"goal: >= {100 * GOAL_UNDER_1:.0f} % under 1 %, |bias| <= {100 * GOAL_BIAS:.1f} %"
+            f", every target within {GOAL_TARGET_PCT:g} %")
+    verdict = "goal missed" if missed else "goal met"
+    return not missed, f"{m.scene}: {verdict}: {', '.join(said)} ({goal})"

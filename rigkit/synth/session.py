@@ -70,6 +70,33 @@ def rig_for_scene(scene: Scene) -> dict[str, Any]:
     }
 
 
+FULL_WIDTH_PX = 4608  # the paper's 16 MP frames, the scale field figures are quoted at
+
+
+def conditions_note(scene: Scene) -> str:
+    """One paragraph, for a synthetic session's notes: the seed and what the capture
+    was rendered with, the shimmer also at the full-resolution pixel scale (the angle
+    it is), so that a reader can tell what air and what range the session stands for."""
+    p = scene.params
+    full = FULL_WIDTH_PX / p.width
+    parts = [
+        f"synthetic scene, seed {scene.seed}: {p.width}x{p.height} px over {p.hfov_deg:g} deg "
+        f"(one px is {full:.1f} px of a {FULL_WIDTH_PX} px frame), scene at {p.distance_m:g} m",
+        f"bursts of {p.burst}" if p.burst > 1 else "one frame per position",
+    ]
+    if p.shimmer_px:
+        parts.append(
+            f"heat shimmer {p.shimmer_px:g} px RMS ({p.shimmer_px * full:.2f} px at "
+            f"{FULL_WIDTH_PX} px; {p.shimmer_spectrum}, over {p.shimmer_corr_px:g} px)"
+        )
+    if p.sky:
+        parts.append(f"sky over {100 * p.sky:.0f} % of the height, haze {p.haze_m:g} m")
+    if any(p.distortion):
+        parts.append(f"lens k1 {p.distortion[0]:g} (given in rig.yaml)")
+    parts.append(f"principal points within +-{p.max_pp_offset_px:g} px of the centre")
+    return "; ".join(parts)
+
+
 def write_synthetic_session(
     scene: Scene,
     out_dir: Path,
@@ -102,8 +129,7 @@ def session_from_rendered(
     removed).
     """
     write_text(out_dir / RIG_FILE, dump_yaml(rig_for_scene(scene)))
-    session = create_session(out_dir, out_dir / RIG_FILE,
-                             notes=f"synthetic scene, seed {scene.seed}")
+    session = create_session(out_dir, out_dir / RIG_FILE, notes=conditions_note(scene))
     for view in VIEWS:
         burst = [out_dir / f"{view}{frame_suffix}"]
         burst += [out_dir / frame_name(view, k) for k in range(1, scene.params.burst)]

@@ -36,7 +36,8 @@ def test_depth_writes_depth_sigma_sidecar_and_previews(scene_dir, truth, tmp_pat
     # What each depth rests on: matched (1) or filled (2) wherever there is one.
     flags_png = cv2.imread(str(tmp_path / "d.flags.png"), cv2.IMREAD_UNCHANGED)
     assert flags_png.shape == depth.shape and flags_png.dtype == np.uint8
-    assert np.all(flags_png[np.isfinite(depth)] & 3) and not np.any(flags_png[~np.isfinite(depth)] & 3)
+    known = np.isfinite(depth)
+    assert np.all(flags_png[known] & 3) and not np.any(flags_png[~known] & 3)
 
 
 def test_depth_reads_the_rig_profile(scene_dir, truth, tmp_path):
