@@ -1,10 +1,26 @@
 """Shared fixtures: one small synthetic scene with ground truth, and the pipeline's
 result on it, computed once per test session."""
+# ruff: noqa: E402 (the thread limits below must come before numpy's first import)
 
 from __future__ import annotations
 
+import os
+
+# One BLAS thread per test process, set before numpy is first imported (here, through
+# rigkit): with OpenBLAS's own threads the lens fit's many small solves and SVDs took
+# 10x as long on a 2-core machine that was busy with anything else (the threads spin
+# waiting for a core), e.g. 37 s instead of 3.6 s for tests/pipeline/test_distortion.py.
+# The batch pool's worker processes inherit it. Under pytest-xdist (scripts/test.sh runs
+# `pytest -n auto`) the workers already share the cores, so OpenCV gets one thread each too.
+# Any of these set in the environment wins.
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+if "PYTEST_XDIST_WORKER" in os.environ:
+    os.environ.setdefault("OPENCV_FOR_THREADS_NUM", "1")
+
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -60,6 +76,19 @@ def synth_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     out = tmp_path_factory.mktemp("sessions") / "seed-3"
     write_synthetic_session(generate_scene(SMALL, seed=3), out, n_targets=5, seed=3)
+    return out
+
+
+@pytest.fixture(scope="session")
+def small_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``synth_session`` at 384x288 px, for tests of how sessions are run (worker pools,
+    clusters, failures) whose assertions do not depend on the frames' size: it renders in
+    a quarter and processes in half of ``synth_session``'s time. Read-only like it."""
+    from rigkit.synth.session import write_synthetic_session
+
+    out = tmp_path_factory.mktemp("sessions") / "small-seed-3"
+    write_synthetic_session(generate_scene(replace(SMALL, width=384, height=288), seed=3),
+                            out, n_targets=5, seed=3)
     return out
 
 

@@ -17,11 +17,12 @@ from tests.conftest import copy_session
 distributed = pytest.importorskip("distributed")
 
 
+@pytest.mark.slow
 def test_sessions_run_as_tasks_on_a_cluster(
-    synth_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    small_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    a, b = (copy_session(synth_session, tmp_path, name) for name in ("a", "b"))
-    broken = copy_session(synth_session, tmp_path, "broken",
+    a, b = (copy_session(small_session, tmp_path, name) for name in ("a", "b"))
+    broken = copy_session(small_session, tmp_path, "broken",
                           edit=lambda data: data["frames"].pop("back"))
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                                   protocol="tcp", host="127.0.0.1",
@@ -50,12 +51,12 @@ def _free_port() -> int:
 
 
 def test_an_unreachable_scheduler_fails_fast_with_one_line(
-    synth_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    small_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setattr("rigkit.batch.cluster.CONNECT_TIMEOUT_S", 1.0)
     address = f"tcp://127.0.0.1:{_free_port()}"
     t0 = time.monotonic()
-    assert main(["process", str(synth_session), "--scheduler", address]) == 2
+    assert main(["process", str(small_session), "--scheduler", address]) == 2
     assert time.monotonic() - t0 < 5
     err = capsys.readouterr().err.strip()
     assert f"--scheduler {address}: cannot reach the scheduler" in err
@@ -63,19 +64,19 @@ def test_an_unreachable_scheduler_fails_fast_with_one_line(
 
 
 def test_a_scheduler_without_workers(
-    synth_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    small_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setattr("rigkit.batch.cluster.WORKER_WAIT_S", 0.5)
     with distributed.LocalCluster(n_workers=0, processes=False,
                                   dashboard_address=None) as cluster:
-        assert main(["process", str(synth_session), "--scheduler",
+        assert main(["process", str(small_session), "--scheduler",
                      cluster.scheduler_address]) == 2
     assert "no worker joined within 0.5 s (start one: dask worker" in capsys.readouterr().err
 
 
 def test_without_distributed_it_says_which_extra(
-    synth_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    small_session: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
-    assert main(["process", str(synth_session), "--scheduler", "tcp://127.0.0.1:8786"]) == 2
+    assert main(["process", str(small_session), "--scheduler", "tcp://127.0.0.1:8786"]) == 2
     assert "pip install 'rigkit[cluster]'" in capsys.readouterr().err

@@ -49,7 +49,7 @@ def test_results_folder_is_complete(processed_session: Path) -> None:
     results = processed_session / "results"
     names = {p.name for p in results.iterdir()}
     assert names == {"depth.npy", "sigma.npy", "depth.json", "depth.png", "sigma.png",
-                     "left.png", "grey.png", "comparisons.csv"}
+                     "left.png", "grey.png", "flags.png", "comparisons.csv"}
     depth = np.load(results / "depth.npy")
     assert depth.shape == (720, 960) and depth.dtype == np.float32
     meta = json.loads((results / "depth.json").read_text())
@@ -101,10 +101,10 @@ def test_an_interrupted_swap_is_undone(processed_session: Path, tmp_path: Path) 
 
 
 def test_batch_goes_on_after_a_failure(
-    synth_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    small_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    good = copy_session(synth_session, tmp_path, "good")
-    missing = copy_session(synth_session, tmp_path, "missing-frame",
+    good = copy_session(small_session, tmp_path, "good")
+    missing = copy_session(small_session, tmp_path, "missing-frame",
                            edit=lambda data: data["frames"].pop("back"))
     absent = tmp_path / "no-such-session"
     code = main(["process", str(missing), str(absent), str(good), "--jobs", "1", "--quiet"])
@@ -135,8 +135,9 @@ def test_bad_sessions_fail_with_one_line(
         process_session(copy, "20260106T000000Z-0006")
 
 
-def test_parallel_batch(synth_session: Path, tmp_path: Path) -> None:
-    paths = [copy_session(synth_session, tmp_path, f"s{i}") for i in range(2)]
+@pytest.mark.slow
+def test_parallel_batch(small_session: Path, tmp_path: Path) -> None:
+    paths = [copy_session(small_session, tmp_path, f"s{i}") for i in range(2)]
     seen: list[tuple[str, str]] = []
     outcomes = run_batch(paths, 2, progress=lambda p, stage, f: seen.append((p.name, stage)))
     assert [o.ok for o in outcomes] == [True, True]
@@ -181,6 +182,7 @@ def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Pat
     assert not (copy / "results").exists()
 
 
+@pytest.mark.slow
 def test_a_session_with_bursts_and_a_lens_profile(tmp_path: Path) -> None:
     """Three frames per position with shimmer, and a distorting lens the rig profile
     names: processed end to end, the burst stacked, the lens recorded."""

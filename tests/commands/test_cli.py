@@ -18,23 +18,24 @@ def _depth_args(scene_dir, out, *extra):
     return ["depth", *imgs, "--out", str(out), "--quiet", *extra]
 
 
-def test_depth_writes_depth_sigma_sidecar_and_previews(scene_dir, truth, tmp_path, capsys):
-    out = tmp_path / "d.npy"
-    flags = ["--focal-px", str(truth.focal_px), "--baseline-lr", "2", "--baseline-lb", "2"]
-    assert main(_depth_args(scene_dir, out, *flags, "--preview")) == 0
-    depth = np.load(out)
+def test_depth_writes_depth_sigma_sidecar_and_previews(scene_depth, truth):
+    # `rigkit depth` with the focal length and baselines as flags and --preview, run once
+    # for this test and test_depth_inputs.py (tests/commands/conftest.py).
+    code, folder, printed = scene_depth
+    assert code == 0
+    depth = np.load(folder / "d.npy")
     assert depth.shape == truth.depth("left").shape and depth.dtype == np.float32
-    assert np.load(tmp_path / "d.sigma.npy").shape == depth.shape
-    meta = json.loads((tmp_path / "d.json").read_text())
+    assert np.load(folder / "d.sigma.npy").shape == depth.shape
+    meta = json.loads((folder / "d.json").read_text())
     assert meta["matches"]["left_right"] > 100 and "stereo" in meta["timings_s"]
-    assert cv2.imread(str(tmp_path / "d.png")) is not None
-    assert "wrote" in capsys.readouterr().out
+    assert cv2.imread(str(folder / "d.png")) is not None
+    assert "wrote" in printed
     # What rigkit export needs: the left image's grey values and the intrinsics.
-    grey = cv2.imread(str(tmp_path / "d.grey.png"), cv2.IMREAD_UNCHANGED)
+    grey = cv2.imread(str(folder / "d.grey.png"), cv2.IMREAD_UNCHANGED)
     assert grey.shape == depth.shape and grey.dtype == np.uint8
     assert meta["left_camera_px"] == {"f": truth.focal_px, "cx": 479.5, "cy": 359.5}
     # What each depth rests on: matched (1) or filled (2) wherever there is one.
-    flags_png = cv2.imread(str(tmp_path / "d.flags.png"), cv2.IMREAD_UNCHANGED)
+    flags_png = cv2.imread(str(folder / "d.flags.png"), cv2.IMREAD_UNCHANGED)
     assert flags_png.shape == depth.shape and flags_png.dtype == np.uint8
     known = np.isfinite(depth)
     assert np.all(flags_png[known] & 3) and not np.any(flags_png[~known] & 3)

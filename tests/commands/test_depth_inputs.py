@@ -35,12 +35,15 @@ def _depth(folder: Path, suffix: str, out: Path, *flags: str) -> int:
     return main(["depth", *frames, "--out", str(out), "--quiet", *flags])
 
 
-def test_raw_frames_give_the_depth_of_their_pngs_at_full_size(scene_dir, dng_scene, truth,
+def test_raw_frames_give_the_depth_of_their_pngs_at_full_size(scene_depth, dng_scene, truth,
                                                                 tmp_path) -> None:
+    # The PNGs' depth: the shared run of the same command with the same flags (its
+    # --preview only adds PNG files; tests/commands/conftest.py).
+    code, png_folder, _ = scene_depth
+    assert code == 0
     flags = ("--focal-px", str(truth.focal_px), "--baseline-lr", "2", "--baseline-lb", "2")
-    assert _depth(scene_dir, "png", tmp_path / "png.npy", *flags) == 0
     assert _depth(dng_scene, "dng", tmp_path / "dng.npy", *flags) == 0
-    png, dng = np.load(tmp_path / "png.npy"), np.load(tmp_path / "dng.npy")
+    png, dng = np.load(png_folder / "d.npy"), np.load(tmp_path / "dng.npy")
     assert dng.shape == png.shape == (720, 960)  # not the 120x160 preview OpenCV reads
     both = np.isfinite(png) & np.isfinite(dng)
     assert both.mean() > 0.7

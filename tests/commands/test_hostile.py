@@ -41,9 +41,9 @@ def test_an_unwritable_session_is_one_line_for_add_target(tmp_path: Path, capsys
     assert load_session(session.path).targets == ()
 
 
-def test_a_full_disk_while_processing_is_no_internal_error(synth_session: Path, tmp_path: Path,
+def test_a_full_disk_while_processing_is_no_internal_error(small_session: Path, tmp_path: Path,
                                                           capsys, monkeypatch) -> None:
-    copy = copy_session(synth_session, tmp_path)
+    copy = copy_session(small_session, tmp_path)
     monkeypatch.setattr("rigkit.batch.session.replace_folder", _failing(errno.ENOSPC))
     assert main(["process", str(copy)]) == 1
     out = capsys.readouterr()

@@ -10,6 +10,7 @@ import pytest
 from rigkit.cli import main
 
 
+@pytest.mark.slow
 def test_table1_writes_four_rows_with_rigkit_best(tmp_path, capsys):
     pytest.importorskip("pycolmap")
     out = tmp_path / "t1"

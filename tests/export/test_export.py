@@ -23,6 +23,7 @@ from tests.export.helpers import SIZE, depth_plane, new_session, read_ply
 EXAMPLE = Path(__file__).resolve().parents[2] / "capture" / "example"
 
 
+@pytest.mark.slow
 def test_the_bundled_example_as_ply_las_laz_and_tif(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -16,6 +16,7 @@ from rigkit.pipeline.features import (
 )
 
 
+@pytest.mark.slow
 def test_prepared_left_matches_both_views_as_on_its_own(images) -> None:
     ref = prepare_left(images["left"])
     for view in ("right", "back"):

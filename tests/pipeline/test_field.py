@@ -115,6 +115,7 @@ def test_same_frame_at_two_positions_is_refused(images, rig) -> None:
         estimate_depth(images["left"], images["right"], images["left"], rig)
 
 
+@pytest.mark.slow
 def test_right_frame_without_parallax_is_refused(images, rig) -> None:
     # The tripod turned but never moved: the right view is the left one shifted.
     shifted = np.roll(images["left"], 7, axis=1)

@@ -100,6 +100,7 @@ def shimmered(tmp_path_factory):
     return truth, images, rig, estimate_depth(*images, rig)
 
 
+@pytest.mark.slow
 def test_predicted_spread_is_the_fits_spread_over_shimmer_draws(shimmered) -> None:
     """Exact back positions moved by fresh shimmer fields, refitted: the offset spreads
     as the bound's ``estimator_px`` says; and the best estimator does better."""

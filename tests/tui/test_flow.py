@@ -8,6 +8,8 @@ import re
 import shutil
 from pathlib import Path
 
+import pytest
+
 from rigkit.capture import POSITIONS, Session, create_session, load_session, read_rows
 from rigkit.capture.field import add_position_frame, frames_at
 from rigkit.synth.demo import Demo
@@ -46,6 +48,7 @@ async def mark_target(pilot, app: FieldApp, moves: list[str], readings: int) -> 
                    f"{readings} readings of T{count}")
 
 
+@pytest.mark.slow
 @synchronous
 async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
     app = demo_app(demo)
@@ -87,6 +90,7 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
         assert hashlib.sha256(card).hexdigest() == frames_at(session, position)[-1].sha256
 
 
+@pytest.mark.slow
 @synchronous
 async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -> None:
     session = create_session(demo.capture / "field-1", demo.rig).path
@@ -120,6 +124,7 @@ async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -
         ["DSCN0001.PNG", "DSCN0003.PNG", "DSCN0004.PNG"]
 
 
+@pytest.mark.slow
 @synchronous
 async def test_quit_mid_flow_resumes_where_it_stopped(demo: Demo) -> None:
     app = demo_app(demo)
@@ -138,6 +143,7 @@ async def test_quit_mid_flow_resumes_where_it_stopped(demo: Demo) -> None:
     assert taken(load_session(demo.session)) == ["left", "right", "back"]
 
 
+@pytest.mark.slow
 @synchronous
 async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None:
     session = create_session(demo.capture / "typed", demo.rig)
@@ -183,8 +189,10 @@ async def test_start_screen_opens_a_session_or_starts_one(demo: Demo) -> None:
         await pilot.press("tab", *"ridge-9 nowhere.yaml", "enter")
         assert "nowhere.yaml" in text(app, "#message")
         assert not (demo.capture / "ridge-9").exists()
-        app.screen.query_one("#new").value = ""
-        await pilot.press(*f"ridge-9 {demo.rig}", "enter")
+        # The rig's long temporary path set, not typed key by key (5 s of key presses);
+        # typing into the field is what the line above does.
+        app.screen.query_one("#new").value = f"ridge-9 {demo.rig}"
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "the new session's rig")
     assert load_session(demo.capture / "ridge-9").rig().name.startswith("synthetic")
     app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
