@@ -74,7 +74,7 @@ def main() -> int:
 
     print(
         f"{'size':>11} {'pixels':>7} {'load':>5} {'match':>6} {'lens':>5} {'rect':>5} "
-        f"{'stereo':>6} {'ambig':>6} {'depth':>6} {'total s':>7} {'peak MB':>7} "
+        f"{'stereo':>6} {'ambig':>6} {'agree':>6} {'depth':>6} {'total s':>7} {'peak MB':>7} "
         f"{'paper s':>7} {'ratio':>5}"
     )
     for w in (int(s) for s in args.sizes.split(",")):
@@ -92,7 +92,8 @@ def main() -> int:
         print(
             f"{w:>5}x{h:<5} {w * h / 1e6:6.1f}M {r['load']:5.2f} {r['matching']:6.2f} "
             f"{r['lens']:5.2f} {r['rectification']:5.2f} {r['stereo']:6.2f} "
-            f"{r['ambiguity']:6.2f} {r['depth']:6.2f} {r['total']:7.2f} {r['peak_mb']:7d} "
+            f"{r['ambiguity']:6.2f} {r.get('agreement', 0.0):6.2f} {r['depth']:6.2f} "
+            f"{r['total']:7.2f} {r['peak_mb']:7d} "
             f"{r['paper']:7.2f} {r['total'] / r['paper']:5.2f}"
         )
     return 0

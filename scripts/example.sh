@@ -13,3 +13,5 @@ python3 -m venv .venv
 .venv/bin/rigkit eval capture/example --csv out/example-eval.csv
 echo "previews: capture/example/results/depth.png, left.png (targets marked), sigma.png"
 echo "report:   out/example-report/ (report.txt, estimate_vs_laser.png, error_vs_range.png)"
+# The last line says whether the example meets the goal (rigkit eval --goal exits 1 if not).
+.venv/bin/rigkit eval capture/example --goal | tail -n 1

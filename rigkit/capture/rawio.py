@@ -290,6 +290,11 @@ def frame_size(path: str | Path) -> tuple[int, int]:
         raise InputError(f"{path}: {_libraw_reason(exc)}") from None
 
 
+def _scaled_to_255(frame: np.ndarray) -> np.ndarray:
+    out = frame * np.float32(255.0)
+    return np.clip(out, 0.0, 255.0, out=out)
+
+
 def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool) -> list[np.ndarray]:
     """Frames (H, W) in [0, 1] -> the pipeline's (H, W) float32 in [0, 255], one scale.
 
@@ -314,7 +319,7 @@ def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool) -> list[np.ndar
     if not frames:
         raise ValueError("to_pipeline needs at least one frame")
     if not linear:
-        return [np.clip(frame * np.float32(255.0), 0.0, 255.0) for frame in frames]
+        return [_scaled_to_255(frame) for frame in frames]
     white = max(_white_point(frame) for frame in frames)
     gain = np.float32(1.0 / white) if white > 0 else np.float32(1.0)
     return [_srgb_encode(np.clip(frame * gain, 0.0, 1.0)) * np.float32(255.0) for frame in frames]
@@ -354,8 +359,11 @@ def _libraw_reason(exc: Exception) -> str:
 
 def _read_plain_grey(path: Path) -> np.ndarray:
     """PNG/TIFF/JPEG -> (H, W) float32 in [0, 1] (not linearised, orientation ignored)."""
-    # load_grey gives [0, 255] for both depths (16-bit divided by 257).
-    return np.clip(load_grey(path) * np.float32(1.0 / 255.0), 0.0, 1.0)
+    # load_grey gives [0, 255] for both depths (16-bit divided by 257): scaled in place,
+    # since each fresh 16 MP array costs time (0.6 s over a 15-frame burst).
+    grey = load_grey(path)
+    grey *= np.float32(1.0 / 255.0)
+    return grey
 
 
 def _cache_path(cache_dir: Path | None, sha256: str | None) -> Path | None:

@@ -53,16 +53,27 @@ class Agreement:
         return float((self.disagree & where).sum() / n) if n else 0.0
 
 
-def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
+def box_stats(a: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation of ``a`` (h, w) float32 over a ``window`` box at
+    every pixel (the standard deviation 0 where rounding makes the variance negative)."""
+    k = (window, window)
+    mean = cv2.boxFilter(a, -1, k)
+    var = cv2.boxFilter(a * a, -1, k) - mean * mean
+    return mean, np.sqrt(np.maximum(var, 0, out=var), out=var)
+
+
+def zncc(
+    a: np.ndarray, b: np.ndarray, window: int,
+    a_stats: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
     """Zero-mean normalised cross-correlation of two (h, w) float32 images over a
     ``window`` x ``window`` box at every pixel: (h, w) float32 in [-1, 1]; 0 where
-    either window is flat."""
-    k = (window, window)
-    ma, mb = cv2.boxFilter(a, -1, k), cv2.boxFilter(b, -1, k)
-    va = cv2.boxFilter(a * a, -1, k) - ma * ma
-    vb = cv2.boxFilter(b * b, -1, k) - mb * mb
-    cov = cv2.boxFilter(a * b, -1, k) - ma * mb
-    den = np.sqrt(np.maximum(va, 0) * np.maximum(vb, 0))
+    either window is flat. ``a_stats``: :func:`box_stats` of ``a``, where the caller
+    compares ``a`` with several images."""
+    ma, sa = a_stats or box_stats(a, window)
+    mb, sb = box_stats(b, window)
+    cov = cv2.boxFilter(a * b, -1, (window, window)) - ma * mb
+    den = sa * sb
     return np.where(den > 1e-6, cov / np.maximum(den, 1e-6), 0.0).astype(np.float32)
 
 
@@ -132,13 +143,14 @@ def view_agreement(
     back: (H, W) float32 recorded back image; disparity: (h, w) float32 px at
     ``scale``, ``x_left - x_right``, NaN = none; ``amb``: the back camera's pose."""
     known = np.isfinite(disparity)
+    left_stats = box_stats(left, window)
     ncc = []
     for seen in (right_at_disparity(right, disparity),
                  back_at_depth(back, disparity, scale, rect, amb, lens,
                                baseline_lr_m, baseline_lb_m)):
         there = np.isfinite(seen)
         # Where a view has nothing, it stands in with the left image: no evidence.
-        score = zncc(left, np.where(there, seen, left).astype(np.float32), window)
+        score = zncc(left, np.where(there, seen, left).astype(np.float32), window, left_stats)
         ncc.append(np.where(known & there, score, np.nan).astype(np.float32))
     with np.errstate(invalid="ignore"):
         bad = (ncc[0] < min_ncc) | (ncc[1] < min_ncc)

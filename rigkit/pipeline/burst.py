@@ -30,13 +30,14 @@ def stack_burst(frames: Sequence[np.ndarray], what: str = "burst") -> np.ndarray
         return frames[0]
     ref = frames[0]
     aligned = [ref]
+    crop = textured_crop(ref, CROP)  # once for the burst
     for i, frame in enumerate(frames[1:], start=2):
         if frame.shape != ref.shape:
             raise InputError(
                 f"{what}: frame {i} is {frame.shape[1]}x{frame.shape[0]}, frame 1 is "
                 f"{ref.shape[1]}x{ref.shape[0]}"
             )
-        dx, dy = frame_shift(ref, frame)
+        dx, dy = _shift_in(ref, frame, crop)
         if np.hypot(dx, dy) > MAX_SHIFT_PX:
             raise InputError(
                 f"{what}: frame {i} is shifted by ({dx:+.0f}, {dy:+.0f}) px from frame 1; "
@@ -86,9 +87,13 @@ def frame_shift(ref: np.ndarray, frame: np.ndarray) -> tuple[float, float]:
     textured crop of ``ref`` (a plain wall in the middle of the frame has nothing to
     correlate: on one, the central crop gave shifts of 75-136 px for frames that had
     not moved)."""
-    crop = textured_crop(ref, CROP)
-    side = crop[0].stop - crop[0].start
-    window = cv2.createHanningWindow((crop[1].stop - crop[1].start, side), cv2.CV_32F)
+    return _shift_in(ref, frame, textured_crop(ref, CROP))
+
+
+def _shift_in(ref: np.ndarray, frame: np.ndarray, crop: tuple[slice, slice]) -> tuple[float, float]:
+    """:func:`frame_shift` measured on ``crop`` (rows, columns) of both frames."""
+    size = (crop[1].stop - crop[1].start, crop[0].stop - crop[0].start)
+    window = cv2.createHanningWindow(size, cv2.CV_32F)
     # Copies: OpenCV windows its inputs in place, and a crop of the whole frame is a view.
     (dx, dy), _ = cv2.phaseCorrelate(
         np.array(ref[crop], np.float32), np.array(frame[crop], np.float32), window

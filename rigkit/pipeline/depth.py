@@ -68,29 +68,33 @@ def left_grid(
 
 def to_left(
     disparity: np.ndarray,
-    masks: np.ndarray,
+    masks: tuple[np.ndarray, ...],
     scale: float,
     rect: Rectification,
     beta: float,
     baseline_m: float,
     shape: tuple[int, int],
     lens: Lens | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """Depth of every pixel of the original (recorded) left image, and masks of the
     rectified canvas carried to the same pixels, in one pass over :func:`left_grid`
     (each chunk of the grid is used once and its memory reused for the next).
 
     disparity: (h, w) float32, px of the ``scale``-resized rectified canvas,
-    ``x_left - x_right``, NaN = unknown. masks: (h, w, c) bool on the same canvas,
-    c <= 4. shape: (H, W) of the original left image.
+    ``x_left - x_right``, NaN = unknown. masks: up to 8 (h, w) bool on the same canvas.
+    shape: (H, W) of the original left image.
     Returns depth: (H, W) float32, metres, z in the left camera frame, NaN where
-    unknown; and the masks: (H, W, c) bool, nearest neighbour, False outside the canvas.
+    unknown; and the masks: each (H, W) bool, nearest neighbour, False outside the canvas.
     """
     depth = np.empty(shape, np.float32)
-    out = np.empty(shape + masks.shape[2:], bool)
-    src = masks.astype(np.uint8)
+    # The masks travel as the bits of one 8-bit channel: OpenCV remaps one channel
+    # fastest (three channels cost 0.13-0.24 s more at 16 MP).
+    packed = np.zeros(disparity.shape, np.uint8)
+    for k, mask in enumerate(masks):
+        packed |= mask.astype(np.uint8) << k
+    bits = np.empty(shape, np.uint8)
     for rows, xs, ys, uf in left_grid(rect, scale, shape, lens):
         d = cv2.remap(disparity, xs, ys, cv2.INTER_LINEAR, borderValue=np.nan)
         depth[rows] = triangulate_z(rect, uf, d / scale, beta, baseline_m)
-        out[rows] = cv2.remap(src, xs, ys, cv2.INTER_NEAREST, borderValue=0) > 0
-    return depth, out
+        bits[rows] = cv2.remap(packed, xs, ys, cv2.INTER_NEAREST, borderValue=0)
+    return depth, tuple((bits & (1 << k)) != 0 for k in range(len(masks)))

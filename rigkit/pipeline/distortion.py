@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from rigkit.geometry import Distortion, distort, rotvec_to_matrix, undistort
 from rigkit.pipeline.ambiguity import back_view_start, shift_sensitivity, spatial_blocks
@@ -327,7 +327,9 @@ def _significant(change: np.ndarray, cov: np.ndarray) -> bool:
         distance = float(change @ np.linalg.solve(cov, change))
     except np.linalg.LinAlgError:
         return False
-    return bool(np.isfinite(distance) and distance > chi2.ppf(SIGNIFICANCE, len(change)))
+    # chdtri(k, q): the chi-square quantile with k degrees of freedom exceeded with
+    # probability q (scipy.special: scipy.stats would add 0.25 s to every command's start)
+    return bool(np.isfinite(distance) and distance > chdtri(len(change), 1 - SIGNIFICANCE))
 
 
 def _lens_sigmas(

@@ -17,7 +17,14 @@ from rigkit.pipeline.depth import to_left
 from rigkit.pipeline.distortion import LensFit, refine_lens
 from rigkit.pipeline.features import Matches, match_to, prepare_left
 from rigkit.pipeline.lens import Lens
-from rigkit.pipeline.rectify import Rectification, footprints, pseudo_rectify, warp_pair
+from rigkit.pipeline.rectify import (
+    Rectification,
+    apply_homography,
+    footprints,
+    pseudo_rectify,
+    scaling,
+    warp_pair,
+)
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.pipeline.stereo import (
     SGBM,
@@ -236,25 +243,27 @@ def estimate_depth(
     amb = remove_ambiguity(
         m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
     )
+    lap("ambiguity", 0.8)
     agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, lens, rig.baseline_lr_m,
                            rig.baseline_lb_m, s.min_agreement, s.agreement_window_px,
                            s.agreement_margin_px)
     if agree.disagree.any():
         disparity = np.where(agree.disagree, np.nan, disparity).astype(np.float32)
-        amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s)
-    lap("agreement", 0.8)
+        if _touches(m_lb, agree.disagree, rect, scale):
+            amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s)
+    lap("agreement", 0.85)
     if lens_fit is not None:  # the lens is not exact: its uncertainty moves the offset too
         offset_sigma = float(np.hypot(amb.offset_sigma_px, lens_fit.offset_sigma_px))
         amb = replace(amb, offset_sigma_px=offset_sigma)
-    lap("ambiguity", 0.85)
     dense, holes = fill_holes(disparity, s.fill_max_gap_px, barrier=agree.disagree)
     # Holes filled across a footprint edge would extrapolate into unseen ground, and
     # a hole with no surface in it (sky between two buildings) is no occlusion.
     dense = restrict_to_footprints(np.where(surface, dense, np.nan), left_fp, right_fp)
     holes &= np.isfinite(dense)
-    depth, masks = to_left(dense, np.dstack([holes, ~surface & left_fp, agree.disagree & left_fp]),
-                           scale, rect, amb.beta, rig.baseline_lr_m, left.shape, lens)
-    filled, no_surface, disagree = masks[..., 0], masks[..., 1], masks[..., 2]
+    depth, (filled, no_surface, disagree) = to_left(
+        dense, (holes, ~surface & left_fp, agree.disagree & left_fp), scale, rect, amb.beta,
+        rig.baseline_lr_m, left.shape, lens,
+    )
     sigma = _depth_sigma(depth, filled, rig, amb, s)
     known = depth[np.isfinite(depth)]  # np.nanmedian's value, at half its cost
     z_median = float(np.median(known)) if known.size else float("nan")
@@ -311,6 +320,15 @@ def _lens(
         s.principal_point_sigma * size[0], s.jackknife_blocks,
     )
     return Lens(rig.focal_px, size, fit.distortion), fit
+
+
+def _touches(m: Matches, mask: np.ndarray, rect: Rectification, scale: float) -> bool:
+    """Whether any of the matches' left points (ideal px) falls on ``mask`` (h, w) bool
+    of the ``scale``-resized rectified canvas."""
+    xs = np.rint(apply_homography(scaling(scale) @ rect.H_left, m.left)).astype(int)
+    h, w = mask.shape
+    inside = (xs[:, 0] >= 0) & (xs[:, 0] < w) & (xs[:, 1] >= 0) & (xs[:, 1] < h)
+    return bool(mask[xs[inside, 1], xs[inside, 0]].any())
 
 
 def _without_disagreeing(

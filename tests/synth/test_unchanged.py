@@ -30,13 +30,13 @@ def test_the_paper_protocol_renders_as_before() -> None:
 
 
 def test_the_bundled_example_renders_as_committed() -> None:
-    # Seed 7 at 1152x864 with sky, haze, gaussian shimmer, a lens and bursts of three.
+    # Seed 7 at 1536x1152 with sky, haze, gaussian shimmer, a lens and bursts of five.
     truth = load_scene(EXAMPLE)
     scene = generate_scene(truth.params, truth.seed)
     radiance, depth = render_view(scene, "left")
     assert np.array_equal(depth, truth.depth("left"), equal_nan=True)
     frames = truth.frame_paths("left")
-    assert len(frames) == 3
+    assert len(frames) == 5
     for k, path in enumerate(frames):
         committed = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         assert np.array_equal(expose(scene, "left", radiance, frame=k), committed)
