@@ -11,6 +11,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import cv2
+
 from rigkit.capture import create_session
 from rigkit.synth.demo import prepare_demo
 from rigkit.tui.app import FieldApp
@@ -70,7 +72,8 @@ async def flow(root: Path) -> None:
 
 
 async def same_frame_twice(root: Path) -> None:
-    """The right position given the left frame again (the session from ``flow``)."""
+    """The right position given the left view again: another exposure (one grey level
+    brighter, so not the same file, which is refused as such) from the unmoved camera."""
     demo = prepare_demo(root / "again", shot_s=0.2)
     session = create_session(demo.capture / "mistake", demo.rig).path
     app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
@@ -83,7 +86,8 @@ async def same_frame_twice(root: Path) -> None:
         await pilot.press("n")
         await until(pilot, lambda: isinstance(app.screen, PositionScreen)
                     and app.screen.position == "right")
-        shutil.copy(demo.scene / "left.png", demo.card / "DSCN0002.PNG")
+        again = cv2.imread(str(demo.scene / "left.png"), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(demo.card / "DSCN0002.PNG"), cv2.add(again, 1))
         await until(pilot, lambda: "redo" in str(app.screen.query_one("#checks").render()))
         await shoot(pilot, app, "same-frame.svg")
         await pilot.press("q")

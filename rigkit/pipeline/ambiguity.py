@@ -252,7 +252,7 @@ def _principal_point_beta_sigma(fit, camera_sigma_px: float) -> float:
 
 
 def _tilt_beta_sigma(fit, back_px: np.ndarray, centre: np.ndarray, stretch_sq: float) -> float:
-    """Consider term (rad): the spread of ``beta`` that heat shimmer at the scale of the
+    """The spread of ``beta`` (rad) that heat shimmer at the scale of the
     whole frame carries. Real turbulence moves an image mostly by large-scale tilt (a
     von Karman spectrum, whose outer scale exceeds the frame); its share that
     magnifies the back view against the left one is exactly what ``beta`` is fitted
