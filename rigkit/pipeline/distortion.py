@@ -43,6 +43,7 @@ from rigkit.pipeline.rectify import Rectification
 MIN_TRACKS = 50
 MAX_TRACKS = 1500  # enough for two global terms; the cost grows with the tracks
 LOSS_SCALE_PX = 0.3  # residual where the robust loss starts to discount a track
+MAX_BASELINE_TURN_RAD = 0.2  # how far the fit may turn the rectification's baseline
 SIGNIFICANCE = 0.997  # the fit replaces the given lens only where the views rule it out
 # at this confidence (a chi-square test on the terms, as for 3 sigma on one of them)
 MAX_DEPTH_STEPS = 8
@@ -227,6 +228,21 @@ def _initial(
     )
 
 
+def _bounds(p0: np.ndarray, n_terms: int, baseline_lb_m: float) -> tuple[np.ndarray, ...]:
+    """Bounds on the parameters (lower, upper): the right camera's baseline direction
+    within ``MAX_BASELINE_TURN_RAD`` of the rectification's (which the left/right rows
+    settle), the back camera's sideways and vertical offset under its distance
+    behind; the rest free. Without them, on one field scene the first (plain) pass let
+    bad tracks turn the baseline by 92 deg and lift the back camera 4 m, a minimum the
+    robust pass did not leave (the corner's sigma 18 px, the offset's 73 % of depth;
+    docs/results.md)."""
+    lower, upper = np.full(p0.size, -np.inf), np.full(p0.size, np.inf)
+    phi = n_terms
+    lower[phi], upper[phi] = p0[phi] - MAX_BASELINE_TURN_RAD, p0[phi] + MAX_BASELINE_TURN_RAD
+    lower[-2:], upper[-2:] = -baseline_lb_m, baseline_lb_m
+    return lower, upper
+
+
 def fit_distortion(
     m_lr: Matches,
     m_lb: Matches,
@@ -265,6 +281,7 @@ def fit_distortion(
     p0 = _initial(problem, rect, back_rotvec)
     scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
     opts = dict(x_scale=scales, diff_step=1e-6, method="trf")
+    opts["bounds"] = _bounds(p0, n_terms, baseline_lb_m)
     fit = least_squares(problem.residuals, p0, **opts)
     fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
     fitted = problem.distortion(fit.x)

@@ -212,14 +212,29 @@ def test_a_profile_is_refined_in_k2_as_well() -> None:
     assert fit.fitted[1] != lens[1]  # k2 is a term the fit moves (k1 and k2 together)
 
 
-def test_tracks_that_fit_no_pose_do_not_inflate_the_lens_sigma() -> None:
-    # Cars that moved between the captures: 8 % of the tracks land tens of px away.
+def _clean_and_with_bad_back_tracks(share: float, px: float):
+    """Fits on tracks of no distortion with 0.1 px noise, as they are and with a
+    ``share`` of the back view's tracks moved by up to ``px`` px: (clean, bad)."""
     rng = np.random.default_rng(6)
     m_lr, m_lb = _tracks(0.0, 0.1, rng)
-    clean = _fit(m_lr, m_lb)
-    bad = rng.random(len(m_lb.other)) < 0.08
+    bad = rng.random(len(m_lb.other)) < share
     moved = m_lb.other.copy()
-    moved[bad] += rng.uniform(-60, 60, (int(bad.sum()), 2))
-    fit = _fit(m_lr, replace(m_lb, other=moved))
+    moved[bad] += rng.uniform(-px, px, (int(bad.sum()), 2))
+    return _fit(m_lr, m_lb), _fit(m_lr, replace(m_lb, other=moved))
+
+
+def test_tracks_that_fit_no_pose_do_not_inflate_the_lens_sigma() -> None:
+    # Cars that moved between the captures: 8 % of the tracks land tens of px away.
+    clean, fit = _clean_and_with_bad_back_tracks(0.08, 60)
     assert fit.corner_sigma_px < 2 * clean.corner_sigma_px
+    assert not fit.significant
+
+
+def test_bad_tracks_do_not_drag_the_fit_to_another_rig() -> None:
+    # A tenth of the back view's tracks hundreds of px off: with the baseline and the
+    # back camera's offset unbounded the first pass ran to a rig the tracks cannot
+    # judge (the corner +- inf px); bounded, the fit stays at the truth.
+    clean, fit = _clean_and_with_bad_back_tracks(0.1, 300)
+    assert fit.corner_sigma_px < 2 * clean.corner_sigma_px
+    assert abs(fit.corner_px) < 3 * clean.corner_sigma_px
     assert not fit.significant
