@@ -324,7 +324,7 @@ def refine_lens(
     with its k3 kept fitted the tracks exactly as well as the fit from nothing (robust
     cost 43.10 against 43.28) but left +4.3 % of depth bias: the tracks cannot tell
     the shapes apart, the depth can."""
-    k1, k2, _, _, k3 = lens.distortion
+    _, k2, _, _, k3 = lens.distortion
     terms = max(n_terms, 2 if (k2 or k3) else 1)
     args = (baseline_lr_m, baseline_lb_m)
     fit = fit_distortion(m_lr, m_lb, rect, lens, *args, terms, principal_point_sigma_px, blocks)

@@ -32,6 +32,14 @@ def demo_app(demo: Demo) -> FieldApp:
                                 demo=demo, graphics=False, settle_s=SETTLE_S))
 
 
+def watching_app(demo: Demo) -> tuple[Path, FieldApp]:
+    """A new session "field-1" and the app on it, watching the demo's card folder for
+    frames (no simulated camera: the test writes them)."""
+    session = create_session(demo.capture / "field-1", demo.rig).path
+    return session, FieldApp(FieldConfig(capture=demo.capture, session=session,
+                                         watch=demo.card, graphics=False, settle_s=SETTLE_S))
+
+
 async def take_position(pilot, app: FieldApp, position: str) -> str:
     """Wait on ``position``'s screen until its frame is checked; return the checks text."""
     await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
@@ -93,9 +101,7 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
 @pytest.mark.slow
 @synchronous
 async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -> None:
-    session = create_session(demo.capture / "field-1", demo.rig).path
-    app = FieldApp(FieldConfig(capture=demo.capture, session=session,
-                               watch=demo.card, graphics=False, settle_s=SETTLE_S))
+    session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
@@ -223,9 +229,7 @@ async def test_a_frame_declaring_a_huge_size_is_refused_and_the_app_goes_on(demo
     # Before: a PNG header claiming 60000x60000 made the TUI exit.
     import struct
 
-    session = create_session(demo.capture / "field-1", demo.rig).path
-    app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
-                               graphics=False, settle_s=SETTLE_S))
+    session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
@@ -290,9 +294,7 @@ async def test_moving_on_without_a_reading_asks_first(demo: Demo) -> None:
 @synchronous
 async def test_a_failed_check_asks_before_moving_on(demo: Demo) -> None:
     # Before: n moved on after "the zoom changed" without a word.
-    session = create_session(demo.capture / "field-1", demo.rig).path
-    app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
-                               graphics=False, settle_s=SETTLE_S))
+    _, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
@@ -313,9 +315,7 @@ async def test_a_failed_check_asks_before_moving_on(demo: Demo) -> None:
 @synchronous
 async def test_a_frame_of_the_next_position_is_held_back_with_a_question(demo: Demo) -> None:
     # Before: a right frame dropped in before n joined the left burst with green ticks.
-    session = create_session(demo.capture / "field-1", demo.rig).path
-    app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
-                               graphics=False, settle_s=SETTLE_S))
+    session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
