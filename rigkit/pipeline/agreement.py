@@ -14,8 +14,10 @@ al., ECCV 2016, "Pixelwise view selection for unstructured multi-view stereo"):
 What the pixel looks like there is compared with what it looks like in the left view
 by zero-mean normalised cross-correlation (ZNCC) over a small window: unmoved by the
 gain and haze differences between cameras, and by a cloud shadow that darkens the
-whole window alike. Where a view shows something else (low ZNCC), the pixel and a
-margin around it get no depth.
+whole window alike. Only the pixels the other view sees enter the comparison, so a
+window that straddles the edge of its frame or a hole in the disparity is judged on
+its seen part. Where a view shows something else (low ZNCC), the pixel and a margin
+around it get no depth.
 """
 
 from __future__ import annotations
@@ -53,28 +55,42 @@ class Agreement:
         return float((self.disagree & where).sum() / n) if n else 0.0
 
 
-def box_stats(a: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and standard deviation of ``a`` (h, w) float32 over a ``window`` box at
-    every pixel (the standard deviation 0 where rounding makes the variance negative)."""
-    k = (window, window)
-    mean = cv2.boxFilter(a, -1, k)
-    var = cv2.boxFilter(a * a, -1, k) - mean * mean
-    return mean, np.sqrt(np.maximum(var, 0, out=var), out=var)
+MIN_SEEN_SHARE = 0.15
+"""A window with fewer of its pixels seen by the other view than this share (12 of 81)
+gives no evidence (NaN). Kept low on purpose: semi-global matching leaves what moved
+riddled with holes, and the few disparities it does give there are the ones to judge
+(on seven town scenes, 0.5 left up to 11.8 % of the moved pixels with a wrong depth,
+0.15 up to 1.7 %; docs/pipeline.md, "Field conditions" 7)."""
 
 
-def zncc(
-    a: np.ndarray, b: np.ndarray, window: int,
-    a_stats: tuple[np.ndarray, np.ndarray] | None = None,
-) -> np.ndarray:
+def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
     """Zero-mean normalised cross-correlation of two (h, w) float32 images over a
-    ``window`` x ``window`` box at every pixel: (h, w) float32 in [-1, 1]; 0 where
-    either window is flat. ``a_stats``: :func:`box_stats` of ``a``, where the caller
-    compares ``a`` with several images."""
-    ma, sa = a_stats or box_stats(a, window)
-    mb, sb = box_stats(b, window)
-    cov = cv2.boxFilter(a * b, -1, (window, window)) - ma * mb
-    den = sa * sb
-    return np.where(den > 1e-6, cov / np.maximum(den, 1e-6), 0.0).astype(np.float32)
+    ``window`` x ``window`` box at every pixel, over only the pixels where ``b`` is
+    finite (NaN: that view has nothing there): (h, w) float32 in [-1, 1]; 0 where
+    either window is flat, NaN where ``b`` has under ``MIN_SEEN_SHARE`` of the window.
+
+    Only the pixels both images have enter the sums. A window that straddles the edge
+    of what a view sees (its frame, a pixel with no disparity) is compared on its seen
+    part alone; filling the rest with ``a`` would mix two cameras' gains in one window
+    and read as a change."""
+    seen = np.isfinite(b)
+    w = seen.astype(np.float32)
+    b0 = np.where(seen, b, 0).astype(np.float32)
+    a0 = a * w
+
+    def mean(x: np.ndarray) -> np.ndarray:
+        return cv2.boxFilter(x, -1, (window, window))
+
+    n = mean(w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(n >= MIN_SEEN_SHARE, 1.0 / n, np.nan).astype(np.float32)
+        ma, mb = mean(a0) * inv, mean(b0) * inv
+        var_a = mean(a0 * a) * inv - ma * ma
+        var_b = mean(b0 * b0) * inv - mb * mb
+        cov = mean(a0 * b0) * inv - ma * mb
+        den = np.sqrt(np.maximum(var_a, 0) * np.maximum(var_b, 0))
+        out = np.where(den > 1e-6, cov / np.maximum(den, 1e-6), 0.0)
+    return np.where(np.isnan(inv), np.nan, out).astype(np.float32)
 
 
 def right_at_disparity(right: np.ndarray, disparity: np.ndarray) -> np.ndarray:
@@ -143,15 +159,13 @@ def view_agreement(
     back: (H, W) float32 recorded back image; disparity: (h, w) float32 px at
     ``scale``, ``x_left - x_right``, NaN = none; ``amb``: the back camera's pose."""
     known = np.isfinite(disparity)
-    left_stats = box_stats(left, window)
     ncc = []
     for seen in (right_at_disparity(right, disparity),
                  back_at_depth(back, disparity, scale, rect, amb, lens,
                                baseline_lr_m, baseline_lb_m)):
-        there = np.isfinite(seen)
-        # Where a view has nothing, it stands in with the left image: no evidence.
-        score = zncc(left, np.where(there, seen, left).astype(np.float32), window, left_stats)
-        ncc.append(np.where(known & there, score, np.nan).astype(np.float32))
+        # A pixel the view does not see (no disparity, outside its frame) is no evidence.
+        seen = np.where(known, seen, np.nan).astype(np.float32)
+        ncc.append(np.where(np.isfinite(seen), zncc(left, seen, window), np.nan))
     with np.errstate(invalid="ignore"):
         bad = (ncc[0] < min_ncc) | (ncc[1] < min_ncc)
     if margin:

@@ -56,7 +56,7 @@ class PipelineSettings:
     edge_window_px: int = 7
     min_agreement: float = 0.5
     agreement_window_px: int = 9
-    agreement_margin_px: int = 4
+    agreement_margin_px: int = 2
     jackknife_blocks: int = 4
     principal_point_sigma: float = 0.005
     stereo_noise_px: float = 0.25

@@ -111,6 +111,25 @@ def test_zncc_is_one_for_the_same_window_and_blind_to_gain() -> None:
     assert zncc(a, np.full_like(a, 9.0), 7)[15, 15] == 0.0  # a flat window: no evidence
 
 
+def test_zncc_compares_only_what_the_other_view_sees() -> None:
+    # A window that straddles the edge of what the other view sees (its frame, or
+    # pixels with no disparity) is compared on its seen part: the unseen part must
+    # not read as a change, whatever the other camera's gain.
+    rng = np.random.default_rng(3)
+    a = rng.uniform(0, 255, (30, 30)).astype(np.float32)
+    b = 0.5 * a + 40
+    b[:, 16:] = np.nan  # the other view ends beside the pixel
+    assert zncc(a, b, 9)[15, 15] == pytest.approx(1.0, abs=1e-4)
+    changed = b.copy()
+    changed[:, :16] = rng.uniform(0, 255, (30, 16))  # what it sees is something else
+    assert zncc(a, changed, 9)[15, 15] < 0.6
+    assert np.isfinite(zncc(a, b, 9)[15, 18])  # 2 of its 9 columns seen
+    assert np.isnan(zncc(a, b, 9)[15, 19])  # 1 of 9: under MIN_SEEN_SHARE
+    few = np.full_like(a, np.nan)
+    few[15, 15] = 1.0
+    assert np.isnan(zncc(a, few, 9)[15, 15])  # one pixel of 81: no evidence
+
+
 def test_holes_are_not_filled_across_a_barrier() -> None:
     row = np.array([[5.0, np.nan, np.nan, 9.0, 9.0, np.nan, np.nan, 4.0]], np.float32)
     filled, holes = fill_holes(row, 8)
