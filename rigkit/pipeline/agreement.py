@@ -72,25 +72,36 @@ def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
     Only the pixels both images have enter the sums. A window that straddles the edge
     of what a view sees (its frame, a pixel with no disparity) is compared on its seen
     part alone; filling the rest with ``a`` would mix two cameras' gains in one window
-    and read as a change."""
+    and read as a change. Computed in place where it can be: every fresh image-sized
+    array costs time to map in (docs/results.md, "Speed and memory")."""
+    k = (window, window)
     seen = np.isfinite(b)
     w = seen.astype(np.float32)
-    b0 = np.where(seen, b, 0).astype(np.float32)
+    b0 = np.where(seen, b, np.float32(0))
     a0 = a * w
-
-    def mean(x: np.ndarray) -> np.ndarray:
-        return cv2.boxFilter(x, -1, (window, window))
-
-    n = mean(w)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(n >= MIN_SEEN_SHARE, 1.0 / n, np.nan).astype(np.float32)
-        ma, mb = mean(a0) * inv, mean(b0) * inv
-        var_a = mean(a0 * a) * inv - ma * ma
-        var_b = mean(b0 * b0) * inv - mb * mb
-        cov = mean(a0 * b0) * inv - ma * mb
-        den = np.sqrt(np.maximum(var_a, 0) * np.maximum(var_b, 0))
-        out = np.where(den > 1e-6, cov / np.maximum(den, 1e-6), 0.0)
-    return np.where(np.isnan(inv), np.nan, out).astype(np.float32)
+    n = cv2.boxFilter(w, -1, k)  # the seen share of each window
+    ma, mb = cv2.boxFilter(a0, -1, k), cv2.boxFilter(b0, -1, k)
+    np.multiply(a0, a, out=w)
+    saa = cv2.boxFilter(w, -1, k)
+    np.multiply(b0, b0, out=w)
+    sbb = cv2.boxFilter(w, -1, k)
+    np.multiply(a0, b0, out=w)
+    cov = cv2.boxFilter(w, -1, k)
+    few = n < MIN_SEEN_SHARE
+    np.maximum(n, MIN_SEEN_SHARE, out=n)
+    for sums in (ma, mb, saa, sbb, cov):  # box means over all pixels -> over the seen
+        np.divide(sums, n, out=sums)
+    cov -= ma * mb
+    saa -= ma * ma
+    sbb -= mb * mb
+    np.maximum(saa, 0, out=saa)  # rounding can make a flat window's variance negative
+    np.maximum(sbb, 0, out=sbb)
+    den = np.sqrt(saa * sbb, out=saa)
+    flat = den <= 1e-6
+    np.divide(cov, np.maximum(den, 1e-6, out=den), out=cov)
+    cov[flat] = 0.0
+    cov[few] = np.nan
+    return cov
 
 
 def right_at_disparity(right: np.ndarray, disparity: np.ndarray) -> np.ndarray:
