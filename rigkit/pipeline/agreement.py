@@ -175,8 +175,10 @@ def view_agreement(
                  back_at_depth(back, disparity, scale, rect, amb, lens,
                                baseline_lr_m, baseline_lb_m)):
         # A pixel the view does not see (no disparity, outside its frame) is no evidence.
-        seen = np.where(known, seen, np.nan).astype(np.float32)
-        ncc.append(np.where(np.isfinite(seen), zncc(left, seen, window), np.nan))
+        seen[~known] = np.nan
+        score = zncc(left, seen, window)
+        score[np.isnan(seen)] = np.nan
+        ncc.append(score)
     with np.errstate(invalid="ignore"):
         bad = (ncc[0] < min_ncc) | (ncc[1] < min_ncc)
     if margin:

@@ -280,8 +280,8 @@ def fit_distortion(
     problem = _Problem(lens, tracks, baseline_lr_m, baseline_lb_m, n_terms, 1.0 / z0)
     p0 = _initial(problem, rect, back_rotvec)
     scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
-    opts = dict(x_scale=scales, diff_step=1e-6, method="trf")
-    opts["bounds"] = _bounds(p0, n_terms, baseline_lb_m)
+    opts = dict(x_scale=scales, diff_step=1e-6, method="trf",
+                bounds=_bounds(p0, n_terms, baseline_lb_m))
     fit = least_squares(problem.residuals, p0, **opts)
     fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
     fitted = problem.distortion(fit.x)
