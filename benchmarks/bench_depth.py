@@ -3,10 +3,13 @@ and full 4608x3456 resolution (one synthetic triple each, rendered once and cach
 and side by side the time of a plain reading of the paper's method on the same images
 (rigkit's matcher, then :func:`rigkit.experiments.paper.paper_depth`).
 
-    python benchmarks/bench_depth.py [--work out/bench] [--sizes 1152,2304,4608]
+    python benchmarks/bench_depth.py [--work out/bench] [--sizes 1152,2304,4608] [--burst 5]
 
 Each size runs in a fresh process so that peak memory (max RSS) is its own; the
-paper's method runs after rigkit in that process (its peak is not reported).
+paper's method runs after rigkit in that process (its peak is not reported). With
+``--burst N`` every position is a burst of N frames, read as ``rigkit depth`` reads
+one (:func:`rigkit.capture.frames.load_capture`: decoded, aligned, median-stacked);
+``load`` then includes the stacking, and the paper's method runs on the stacked triple.
 """
 
 from __future__ import annotations
@@ -27,8 +30,15 @@ def run_one(scene: Path) -> dict:
 
     truth = load_scene(scene)
     rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
+    views = ("left", "right", "back")
     t0 = time.perf_counter()
-    imgs = [load_grey(truth.image_path(v)) for v in ("left", "right", "back")]
+    if truth.params.burst > 1:
+        from rigkit.capture.frames import frame_files, load_capture
+
+        bursts = frame_files({v: truth.frame_paths(v) for v in views})
+        imgs = list(load_capture(bursts).images)
+    else:
+        imgs = [load_grey(truth.image_path(v)) for v in views]
     t_load = time.perf_counter() - t0
     res = estimate_depth(*imgs, rig)
     total = time.perf_counter() - t0
@@ -65,6 +75,7 @@ def main() -> int:
     )
     ap.add_argument("--work", type=Path, default=Path("out/bench"))
     ap.add_argument("--sizes", default="1152,2304,4608")
+    ap.add_argument("--burst", type=int, default=1, help="frames per position (default 1)")
     ap.add_argument("--one", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
@@ -79,9 +90,10 @@ def main() -> int:
     )
     for w in (int(s) for s in args.sizes.split(",")):
         h = w * 3 // 4
-        scene = args.work / f"bench-{w}"
+        scene = args.work / (f"bench-{w}" if args.burst == 1 else f"bench-{w}-burst{args.burst}")
         if not (scene / "scene.yaml").is_file():
-            write_scene(generate_scene(SynthParams(width=w, height=h), seed=1), scene)
+            params = SynthParams(width=w, height=h, burst=args.burst)
+            write_scene(generate_scene(params, seed=1), scene)
         out = subprocess.run(
             [sys.executable, __file__, "--one", str(scene)],
             capture_output=True,
