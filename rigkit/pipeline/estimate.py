@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -109,7 +109,18 @@ class DepthResult:
 
     def offset_warning(self) -> str | None:
         """See :func:`offset_warning`."""
-        return offset_warning(self.offset_depth_fraction)
+        return offset_warning(self.offset_depth_fraction, self.offset_sources())
+
+    def offset_sources(self) -> dict[str, float]:
+        """What the disparity offset's standard error is made of (px, one sigma each,
+        adding in quadrature to ``ambiguity.offset_sigma_px``): ``air``, the matches'
+        scatter between parts of the frame and large-scale shimmer; ``principal_points``,
+        the views' unknown principal points; ``lens``, the lens fitted from the views."""
+        a = self.ambiguity
+        lens = self.lens_fit.offset_sigma_px if self.lens_fit is not None else 0.0
+        known = a.principal_point_sigma_px**2 + lens**2
+        return {"air": float(np.sqrt(max(a.offset_sigma_px**2 - known, 0.0))),
+                "principal_points": a.principal_point_sigma_px, "lens": lens}
 
     def diagnostics(self) -> dict[str, object]:
         """JSON-ready summary: settings, warps, offset, match counts, timings."""
@@ -164,16 +175,30 @@ OFFSET_WARNING_FRACTION = 0.003
 so: the field issue's bar for a scene's median bias, which bursts meet."""
 
 
-def offset_warning(offset_depth_fraction: float) -> str | None:
+OFFSET_ADVICE = {
+    "air": ("the matches' scatter between parts of the frame, which heat shimmer sets "
+            "above all: bursts of several frames per position and full-resolution frames "
+            "reduce it (docs/field.md)"),
+    "principal_points": ("the views' principal points, which may differ: one camera "
+                         "moved between the three positions has one (rig profile: "
+                         "pipeline: principal_point_sigma: 0; docs/rig-profiles.md)"),
+    "lens": ("the lens distortion fitted from the views: give the lens in the rig "
+             "profile (camera.distortion, or lensfun's profile; docs/rig-profiles.md)"),
+}
+"""What the user can do about each part of :meth:`DepthResult.offset_sources`."""
+
+
+def offset_warning(offset_depth_fraction: float, sources: Mapping[str, float]) -> str | None:
     """One line for the user where the offset's uncertainty alone (``offset_depth_fraction``
-    of :class:`DepthResult`) exceeds ``OFFSET_WARNING_FRACTION`` of depth, else None."""
+    of :class:`DepthResult`) exceeds ``OFFSET_WARNING_FRACTION`` of depth, naming its
+    largest part of ``sources`` (:meth:`DepthResult.offset_sources`) and what reduces
+    it; else None."""
     if not offset_depth_fraction > OFFSET_WARNING_FRACTION:
         return None
+    largest = max(OFFSET_ADVICE, key=lambda name: sources.get(name, 0.0))
     return (
         f"the disparity offset alone leaves +-{100 * offset_depth_fraction:.2f} % "
-        "of depth (1 sigma) at the median range; bursts of several frames per "
-        "position (against heat shimmer) and full-resolution frames reduce it "
-        "(docs/field.md)"
+        f"of depth (1 sigma) at the median range, most of it from {OFFSET_ADVICE[largest]}"
     )
 
 

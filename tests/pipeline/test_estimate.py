@@ -32,3 +32,24 @@ def test_offset_share_of_depth_error_and_its_warning(result, rig) -> None:
     assert steady.offset_warning() is None
     shaky = replace(result, offset_depth_fraction=0.0042)
     assert "+-0.42 % of depth" in str(shaky.offset_warning())
+
+
+def test_the_offset_warning_names_its_largest_part(result) -> None:
+    # The parts add in quadrature to the offset's standard error, and the advice is
+    # the one for the largest: bursts do nothing for a lens or principal points.
+    parts = result.offset_sources()
+    total = result.ambiguity.offset_sigma_px
+    assert np.sqrt(sum(v**2 for v in parts.values())) == pytest.approx(total, rel=1e-6)
+    amb = result.ambiguity
+    for sigmas, says in (((3.0, 0.1), "bursts of several frames"),
+                         ((3.0, 2.9), "one camera moved between"),
+                         ((0.5, 0.1), "bursts of several frames")):
+        total, pp = sigmas
+        shaky = replace(result, offset_depth_fraction=0.01, lens_fit=None,
+                        ambiguity=replace(amb, offset_sigma_px=total,
+                                          principal_point_sigma_px=pp))
+        assert says in str(shaky.offset_warning())
+    lens_fit = replace(result.lens_fit, offset_sigma_px=2.5)
+    blurred = replace(result, offset_depth_fraction=0.01, lens_fit=lens_fit,
+                      ambiguity=replace(amb, offset_sigma_px=3.0, principal_point_sigma_px=0.2))
+    assert "give the lens in the rig profile" in str(blurred.offset_warning())
