@@ -18,10 +18,21 @@ whole window alike. Only the pixels the other view sees enter the comparison, so
 window that straddles the edge of its frame or a hole in the disparity is judged on
 its seen part. Where a view shows something else (low ZNCC), the pixel and a margin
 around it get no depth.
+
+Heat shimmer moves each view's patches by its own fraction of a pixel, so even a right
+depth puts the other view's window off by that much, and fine texture decorrelates.
+Where the views' measured misalignment (the back view's reprojection RMS from
+ambiguity removal, the rectified rows' RMS for the right view) reaches
+``SHIMMER_STEP_MIN_PX`` on the stereo canvas, each window is compared at its own
+position and at one misalignment step around it, and the best score counts: midday air
+(1 px of shimmer, single frames) had otherwise refused 14-24 % of the pixels, and the
+refused matches were those the air had moved most, which left the offset's spread
+under-estimated. Something that moved is metres away, far beyond one step.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -61,6 +72,13 @@ gives no evidence (NaN). Kept low on purpose: semi-global matching leaves what m
 riddled with holes, and the few disparities it does give there are the ones to judge
 (on seven town scenes, 0.5 left up to 11.8 % of the moved pixels with a wrong depth,
 0.15 up to 1.7 %; docs/pipeline.md, "Field conditions" 7)."""
+
+SHIMMER_STEP_MIN_PX = 0.25
+"""Per-axis RMS misalignment (stereo canvas px) from which a window is also compared
+one step off its position: under it (field air of 0.3 px, bursts, still air) the
+comparison is at the depth's own position only."""
+SHIMMER_STEP_MAX_PX = 1.0
+"""The step never exceeds this (stereo canvas px), whatever a poor fit's RMS says."""
 
 
 def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
@@ -104,13 +122,14 @@ def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
     return cov
 
 
-def right_at_disparity(right: np.ndarray, disparity: np.ndarray) -> np.ndarray:
+def right_at_disparity(right: np.ndarray, disparity: np.ndarray, dy: float = 0.0
+                       ) -> np.ndarray:
     """The rectified right image (h, w) float32 sampled where each left pixel's
-    disparity (px, ``x_left - x_right``) puts its match: (h, w) float32, NaN where
-    the disparity is NaN or the match is off the image."""
+    disparity (px, ``x_left - x_right``) puts its match, ``dy`` px lower: (h, w)
+    float32, NaN where the disparity is NaN or the match is off the image."""
     h, w = disparity.shape
     xs = (np.arange(w, dtype=np.float32)[None, :] - disparity).astype(np.float32)
-    ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w))
+    ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None] + np.float32(dy), (h, w))
     return cv2.remap(right, xs, np.ascontiguousarray(ys), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
 
@@ -125,9 +144,32 @@ def back_at_depth(
     no disparity or the point falls outside the back image.
 
     back: (H, W) float32, the recorded back image at full resolution."""
+    small = _resized(back, scale)
+    xs, ys = back_positions(disparity, scale, rect, amb, lens, baseline_lr_m, baseline_lb_m)
+    return _sample(small, xs, ys)
+
+
+def _resized(image: np.ndarray, scale: float) -> np.ndarray:
+    """``image`` area-averaged to ``scale`` (the stereo canvas's pixel size)."""
+    small = (round(image.shape[1] * scale), round(image.shape[0] * scale))
+    return cv2.resize(image, small, interpolation=cv2.INTER_AREA)
+
+
+def _sample(image: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """``image`` at (xs, ys) (float32 maps), bilinear, NaN outside it."""
+    return cv2.remap(image, xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=np.nan)
+
+
+def back_positions(
+    disparity: np.ndarray, scale: float, rect: Rectification, amb: Ambiguity, lens: Lens,
+    baseline_lr_m: float, baseline_lb_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pixel of the ``scale``-resized rectified left canvas lands in the
+    ``scale``-resized recorded back image, given its disparity (px on that canvas,
+    ``x_left - x_right``) and the geometry fitted by ambiguity removal: (x, y), each
+    (h, w) float32 px; NaN where there is no disparity."""
     h, w = disparity.shape
-    small = (round(back.shape[1] * scale), round(back.shape[0] * scale))
-    back_small = cv2.resize(back, small, interpolation=cv2.INTER_AREA)
     S, Sinv = scaling(scale), np.linalg.inv(scaling(scale))
     f = rect.K[0, 0]
     cx, cy = rect.K[0, 2] + rect.canvas[0, 2], rect.K[1, 2] + rect.canvas[1, 2]
@@ -135,7 +177,7 @@ def back_at_depth(
     # camera's axes is linear in (u, v): q = R_b R_rect^T (a, p, 1).
     M = rotvec_to_matrix(amb.back_rotvec) @ rect.R_rect.T
     t = rotvec_to_matrix(amb.back_rotvec) @ np.array([*amb.back_offset_m, -baseline_lb_m])
-    out = np.empty((h, w), np.float32)
+    xs, ys = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
     u = Sinv[0, 0] * np.arange(w) + Sinv[0, 2]
     a = (u - cx) / f
     for r0 in range(0, h, CHUNK_ROWS):
@@ -150,11 +192,23 @@ def back_at_depth(
             ideal = np.stack([X[0] / X[2] * f + rect.K[0, 2], X[1] / X[2] * f + rect.K[1, 2]],
                              axis=-1)
         rec = lens.to_recorded(ideal)
-        xs = (S[0, 0] * rec[..., 0] + S[0, 2]).astype(np.float32)
-        ys = (S[1, 1] * rec[..., 1] + S[1, 2]).astype(np.float32)
-        out[rows] = cv2.remap(back_small, xs, ys, cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
-    return out
+        xs[rows] = S[0, 0] * rec[..., 0] + S[0, 2]
+        ys[rows] = S[1, 1] * rec[..., 1] + S[1, 2]
+    return xs, ys
+
+
+def shimmer_steps(rms_px: float, scale: float, axes: int) -> list[tuple[float, float]]:
+    """The offsets (dx, dy) (stereo canvas px) at which a window is compared: only
+    (0, 0) where the per-axis misalignment ``rms_px`` (full-resolution px, one axis)
+    times ``scale`` is under ``SHIMMER_STEP_MIN_PX``; else one step of it (at most
+    ``SHIMMER_STEP_MAX_PX``) each way along y (``axes`` 1) or along x and y (2)."""
+    step = min(rms_px * scale, SHIMMER_STEP_MAX_PX)
+    if not step >= SHIMMER_STEP_MIN_PX:
+        return [(0.0, 0.0)]
+    offsets = (-step, 0.0, step)
+    if axes == 1:
+        return [(0.0, dy) for dy in offsets]
+    return [(dx, dy) for dy in offsets for dx in offsets]
 
 
 def view_agreement(
@@ -164,24 +218,45 @@ def view_agreement(
 ) -> Agreement:
     """Pixels of the rectified left canvas whose depth the right or the back view
     contradicts: ZNCC over ``window`` px below ``min_ncc`` in either view, grown by
-    ``margin`` px (semi-global matching has spread a wrong disparity that far).
+    ``margin`` px (semi-global matching has spread a wrong disparity that far). Each
+    view's window is taken at the best of :func:`shimmer_steps` around where the depth
+    puts it (module docstring).
 
     left, right: (h, w) float32 rectified pair at ``scale`` (:func:`warp_pair`);
     back: (H, W) float32 recorded back image; disparity: (h, w) float32 px at
     ``scale``, ``x_left - x_right``, NaN = none; ``amb``: the back camera's pose."""
     known = np.isfinite(disparity)
-    ncc = []
-    for seen in (right_at_disparity(right, disparity),
-                 back_at_depth(back, disparity, scale, rect, amb, lens,
-                               baseline_lr_m, baseline_lb_m)):
-        # A pixel the view does not see (no disparity, outside its frame) is no evidence.
-        seen[~known] = np.nan
-        score = zncc(left, seen, window)
-        score[np.isnan(seen)] = np.nan
-        ncc.append(score)
+    right_steps = shimmer_steps(rect.row_rms_px, scale, axes=1)
+    back_steps = shimmer_steps(amb.rms_px / np.sqrt(2), scale, axes=2)  # 2-D RMS per axis
+    back_small = _resized(back, scale)
+    xs, ys = back_positions(disparity, scale, rect, amb, lens, baseline_lr_m, baseline_lb_m)
+    ncc = [
+        _best_zncc(left, lambda dx, dy: right_at_disparity(right, disparity, dy), right_steps,
+                   known, window),
+        _best_zncc(left, lambda dx, dy: _sample(back_small, xs + np.float32(dx),
+                                                ys + np.float32(dy)), back_steps, known, window),
+    ]
     with np.errstate(invalid="ignore"):
         bad = (ncc[0] < min_ncc) | (ncc[1] < min_ncc)
     if margin:
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1,) * 2)
         bad = cv2.dilate(bad.astype(np.uint8), kernel) > 0
     return Agreement(bad, ncc[0], ncc[1])
+
+
+def _best_zncc(
+    left: np.ndarray, sample: Callable[[float, float], np.ndarray],
+    steps: list[tuple[float, float]], known: np.ndarray, window: int,
+) -> np.ndarray:
+    """The best ZNCC of ``left`` with a view ``sample(dx, dy)`` gives at each offset of
+    ``steps``: (h, w) float32, NaN where no offset has a seen window. A pixel without
+    a disparity (``known`` False) is no evidence; nor is one the view does not see."""
+    best: np.ndarray | None = None
+    for dx, dy in steps:
+        seen = sample(dx, dy)
+        seen[~known] = np.nan
+        score = zncc(left, seen, window)
+        score[np.isnan(seen)] = np.nan
+        best = score if best is None else np.fmax(best, score, out=best)
+    assert best is not None
+    return best

@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 
 from rigkit.pipeline import RigGeometry, estimate_depth
-from rigkit.pipeline.agreement import back_at_depth, right_at_disparity, zncc
+from rigkit.pipeline.agreement import (
+    SHIMMER_STEP_MAX_PX,
+    back_at_depth,
+    right_at_disparity,
+    shimmer_steps,
+    zncc,
+)
 from rigkit.pipeline.estimate import FLAG_DISAGREE, FLAG_FILLED, FLAG_MATCHED
 from rigkit.pipeline.images import load_grey
 from rigkit.pipeline.settings import PipelineSettings
@@ -128,6 +134,42 @@ def test_zncc_compares_only_what_the_other_view_sees() -> None:
     few = np.full_like(a, np.nan)
     few[15, 15] = 1.0
     assert np.isnan(zncc(a, few, 9)[15, 15])  # one pixel of 81: no evidence
+
+
+def _scene(tmp_path_factory, params: SynthParams, seed: int):
+    out = tmp_path_factory.mktemp("air") / "scene"
+    write_scene(generate_scene(params, seed), out)
+    truth = load_scene(out)
+    images = [load_grey(truth.image_path(v)) for v in ("left", "right", "back")]
+    return truth, images, RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
+
+
+def test_midday_air_does_not_refuse_a_still_world(tmp_path_factory) -> None:
+    # 1 px of shimmer per view (single frames): a right depth puts the other views'
+    # windows off by about that much. Compared at the depth's own position only, 8.2 %
+    # of this scene was refused; within the views' measured misalignment, 0.7 %.
+    truth, images, rig = _scene(tmp_path_factory, SynthParams(width=960, height=720,
+                                                              shimmer_px=1.0), 2)
+    result = estimate_depth(*images, rig)
+    assert result.ambiguity.rms_px > 1.0  # the air moved the views that much
+    assert result.disagree.mean() < 0.02
+
+
+def test_what_moved_is_still_refused_in_midday_air(tmp_path_factory) -> None:
+    # The tolerance is one misalignment step: cars and people are metres away.
+    truth, images, rig = _scene(tmp_path_factory, replace(MOVING, shimmer_px=1.0), 6)
+    checked = estimate_depth(*images, rig)
+    unchecked = estimate_depth(*images, rig, settings=PipelineSettings(min_agreement=0.0))
+    assert _wrong_moved(truth, checked.depth) < 0.5 * _wrong_moved(truth, unchecked.depth)
+
+
+def test_shimmer_steps_follow_the_measured_misalignment() -> None:
+    assert shimmer_steps(0.4, 0.5, axes=2) == [(0.0, 0.0)]  # 0.2 canvas px: in place
+    assert shimmer_steps(float("nan"), 0.5, axes=2) == [(0.0, 0.0)]
+    steps = shimmer_steps(1.2, 0.5, axes=2)
+    assert len(steps) == 9 and (0.0, 0.0) in steps and (0.6, -0.6) in steps
+    assert shimmer_steps(1.2, 0.5, axes=1) == [(0.0, -0.6), (0.0, 0.0), (0.0, 0.6)]
+    assert max(dy for _, dy in shimmer_steps(50.0, 0.5, axes=1)) == SHIMMER_STEP_MAX_PX
 
 
 def test_holes_are_not_filled_across_a_barrier() -> None:
