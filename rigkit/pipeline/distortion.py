@@ -23,6 +23,14 @@ profile, ``camera.distortion``) is the starting point, refined in k1 and k2
 reject the given lens. The fitted lens replaces the given one only where the views
 rule it out (:func:`_significant`): heat shimmer and principal points apart move the
 fit even when the given lens is right.
+
+A lens bends each camera's image about that camera's principal point, and three
+cameras are not centred alike (up to ~30 px apart). Bent about the image centre in
+every view, a 6 px corner bend leaves a smooth ~0.25 px mismatch between views whose
+centres differ by ~40 px, the size of the back view's depth signal. Wherever the lens
+in use bends, each view's centre is therefore fitted too (:func:`_fit_centres`), held
+to the image centre by a prior of ``principal_point_sigma_px``; the later stages bend
+each view about its own (:attr:`LensFit.centres_px`).
 """
 
 from __future__ import annotations
@@ -34,7 +42,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.special import chdtri
 
-from rigkit.geometry import Distortion, distort, rotvec_to_matrix, undistort
+from rigkit.geometry import NO_DISTORTION, Distortion, distort, rotvec_to_matrix, undistort
 from rigkit.pipeline.ambiguity import back_view_start, shift_sensitivity, spatial_blocks
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
@@ -66,7 +74,10 @@ class LensFit:
     the disparity offset's standard error that the lens's uncertainty carries (px,
     added to the back camera's); ``tracks``: corners seen in all three views that the
     fit used; ``rms_px``: their reprojection RMS; ``start_rejected``: the views ruled
-    out the given lens and this is the fit from no distortion (:func:`refine_lens`).
+    out the given lens and this is the fit from no distortion (:func:`refine_lens`);
+    ``centres_px``: ((x, y) left, right, back) px from the image centre to each view's
+    centre of distortion (fitted where the lens in use bends and the views' principal
+    points may differ, else zeros).
     """
 
     distortion: Distortion
@@ -81,6 +92,11 @@ class LensFit:
     rms_px: float
     corner_noise_sigma_px: float
     start_rejected: bool = False
+    centres_px: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 3
+
+    def lens(self, focal_px: float, size: tuple[int, int], view: int) -> Lens:
+        """The :class:`Lens` of view ``view`` (0 left, 1 right, 2 back) to use."""
+        return Lens(focal_px, size, self.distortion, self.centres_px[view])
 
     def warning(self) -> str | None:
         """One line where the views rejected the given lens, else None."""
@@ -107,6 +123,9 @@ class LensFit:
             "tracks": self.tracks,
             "reprojection_rms_px": _number(self.rms_px),
             "start_rejected": self.start_rejected,
+            "centres_px": {view: [round(c, 2) for c in centre]
+                           for view, centre in zip(("left", "right", "back"), self.centres_px,
+                                                   strict=True)},
         }
 
 
@@ -154,6 +173,7 @@ class _Problem:
         self.pl, self.pr, self.pb = tracks
         self.rc = corner_radius(lens)
         self.w = np.full(len(self.pl), w0)
+        self.centres = np.zeros((3, 2))  # each view's centre of distortion, px from lens.centre
 
     def distortion(self, p: np.ndarray) -> Distortion:
         k = list(self.lens.distortion)
@@ -166,16 +186,17 @@ class _Problem:
         rotated into it, its rotated centre and the positions it saw."""
         n = self.n_terms
         d = self.distortion(p)
-        nl = (self.pl - self.lens.centre) / self.lens.focal_px
+        nl = (self.pl - self.lens.centre - self.centres[0]) / self.lens.focal_px
         x, y = undistort(nl[:, 0], nl[:, 1], d)
         rays = np.stack([x, y, np.ones_like(x)], axis=1)
         phi = p[n]
         c_r = self.c_lr * np.array([np.cos(phi), np.sin(phi), 0.0])
         c_b = np.array([p[n + 7], p[n + 8], -self.c_lb])
         views = []
-        for rv, c, seen in ((p[n + 1 : n + 4], c_r, self.pr), (p[n + 4 : n + 7], c_b, self.pb)):
+        for rv, c, seen, centre in ((p[n + 1 : n + 4], c_r, self.pr, self.centres[1]),
+                                    (p[n + 4 : n + 7], c_b, self.pb, self.centres[2])):
             R = rotvec_to_matrix(rv)
-            views.append((rays @ R.T, R @ c, seen))
+            views.append((rays @ R.T, R @ c, seen, self.lens.centre + centre))
         return d, views
 
     def _track_residuals(self, setup, w: np.ndarray) -> np.ndarray:
@@ -184,10 +205,10 @@ class _Problem:
         R ray - w R c (up to scale)."""
         d, views = setup
         out = []
-        for rays, Rc, seen in views:
+        for rays, Rc, seen, centre in views:
             Xc = rays - w[:, None] * Rc
             x, y = distort(Xc[:, 0] / Xc[:, 2], Xc[:, 1] / Xc[:, 2], d)
-            uv = np.stack([x, y], axis=1) * self.lens.focal_px + self.lens.centre
+            uv = np.stack([x, y], axis=1) * self.lens.focal_px + centre
             out.append(uv - seen)
         return np.concatenate(out, axis=1)
 
@@ -285,7 +306,7 @@ def fit_distortion(
     fit = least_squares(problem.residuals, p0, **opts)
     fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
     fitted = problem.distortion(fit.x)
-    corner_sigma, noise_sigma, offset_sigma, cov = _lens_sigmas(
+    corner_sigma, noise_sigma, offset_sigma, cov, inflation = _lens_sigmas(
         fit, problem, lens, principal_point_sigma_px, blocks
     )
     err = np.linalg.norm(problem.residuals(fit.x).reshape(-1, 2), axis=1)
@@ -296,11 +317,25 @@ def fit_distortion(
     # tell from them is not taken (on field scenes without distortion, weighing the
     # noise alone at 2 sigma took a lens in 4 of 9 runs and biased depth by 0.7 %).
     significant = _significant(fit.x[:n_terms], cov)
+    used = fitted if significant else lens.distortion
+    centres = np.zeros((3, 2))
+    if principal_point_sigma_px > 0 and used != NO_DISTORTION and np.isfinite(inflation):
+        # Each view is bent about its own centre: fitted with the terms where the fit
+        # is taken, under the given terms where those stand.
+        start = fit.x.copy()
+        if not significant:
+            start[:n_terms] = 0.0
+        x, centres = _fit_centres(problem, start, opts, principal_point_sigma_px,
+                                  inflation, fixed_terms=0 if significant else n_terms)
+        if significant:
+            fitted = used = problem.distortion(x)
+            corner = corner_shift_px(Lens(lens.focal_px, lens.size, fitted))
     return LensFit(
-        distortion=fitted if significant else lens.distortion,
+        distortion=used,
         start=lens.distortion,
         fitted=fitted,
         significant=significant,
+        centres_px=tuple((float(u), float(v)) for u, v in centres),
         corner_px=corner,
         corner_sigma_px=corner_sigma,
         offset_sigma_px=offset_sigma,
@@ -309,6 +344,41 @@ def fit_distortion(
         rms_px=float(np.sqrt(np.mean(err[err < 3.0] ** 2))),
         corner_noise_sigma_px=noise_sigma,
     )
+
+
+def _fit_centres(
+    problem: _Problem, x: np.ndarray, opts: dict, prior_px: float, inflation: float,
+    fixed_terms: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The fit again from ``x`` with each view's centre of distortion free, each held to
+    the image centre by a Gaussian prior of ``prior_px`` (one standard deviation per
+    axis), the first ``fixed_terms`` radial terms held as they are in ``x``: the outer
+    parameters (P,) and the centres (3, 2) px. The prior enters as residual rows
+    weighed as a maximum a posteriori fit would weigh them against the tracks: their
+    scatter (robust RMS) times the square root of ``inflation``, how much more the fit
+    moves than independent errors would move it (heat shimmer moves whole patches of
+    tracks together; :func:`_lens_sigmas`). Without shimmer the views settle the
+    centres to a few px (truths 10-45 px off the image centre; docs/results.md); in
+    shimmer the prior holds them near the image centre."""
+    scatter = 1.4826 * float(np.median(np.abs(problem.residuals(x))))
+    weight = scatter * np.sqrt(max(inflation, 1.0)) / prior_px
+    held = x[:fixed_terms]
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        problem.centres = q[-6:].reshape(3, 2)
+        return np.concatenate([problem.residuals(np.concatenate([held, q[:-6]])),
+                               q[-6:] * weight])
+
+    lower, upper = (b[fixed_terms:] for b in opts["bounds"])
+    fit = least_squares(
+        residuals, np.concatenate([x[fixed_terms:], problem.centres.ravel()]), loss="cauchy",
+        f_scale=LOSS_SCALE_PX, diff_step=opts["diff_step"], method="trf",
+        x_scale=np.concatenate([opts["x_scale"][fixed_terms:], np.full(6, 10.0)]),
+        bounds=(np.concatenate([lower, np.full(6, -np.inf)]),
+                np.concatenate([upper, np.full(6, np.inf)])),
+    )
+    residuals(fit.x)  # leave the centres and the depths at the solution
+    return np.concatenate([held, fit.x[:-6]]), fit.x[-6:].reshape(3, 2)
 
 
 def refine_lens(
@@ -351,12 +421,14 @@ def _significant(change: np.ndarray, cov: np.ndarray) -> bool:
 
 def _lens_sigmas(
     fit, problem: _Problem, lens: Lens, principal_point_sigma_px: float, blocks: int
-) -> tuple[float, float, float, np.ndarray]:
+) -> tuple[float, float, float, np.ndarray, float]:
     """Standard errors of the corner shift (px), of its part from the tracks' noise
     alone (px), and of the disparity offset (px) that the radial terms' uncertainty
     carries (the later stages take the lens as exact, and this figure is what that
-    hides from the offset's standard error), and the terms' covariance (n, n) (noise
-    and principal points; the terms in the fit's units).
+    hides from the offset's standard error), the terms' covariance (n, n) (noise
+    and principal points; the terms in the fit's units), and the noise part's
+    inflation: its variance at the corner over the one independent errors would give
+    (at least 1; inf where there is no fit).
 
     The noise covariance of the outer parameters (the depths are already eliminated:
     variable projection) is the larger, at the corner, of the Gauss-Newton one, which
@@ -374,7 +446,7 @@ def _lens_sigmas(
     if inlier.sum() < MIN_TRACKS:
         # The fit explains too few tracks to say how well: as when too few are seen
         # by all three views, it is not taken and the given lens is kept.
-        return float("inf"), float("inf"), 0.0, np.full((n, n), np.inf)
+        return float("inf"), float("inf"), 0.0, np.full((n, n), np.inf), float("inf")
     # Both from the plain Jacobian and residuals of the tracks the fit explains: the
     # robust fit's own Jacobian is weighted down where its residuals are large, and
     # paired with those residuals (tracks on cars that moved between the captures) it
@@ -392,11 +464,14 @@ def _lens_sigmas(
         terms = noise[:n, :n] + (consider @ consider.T)[:n, :n] * 2 * principal_point_sigma_px**2
         yaw_per_term = np.linalg.solve(noise[:n, :n], noise[:n, n + 2])
     except np.linalg.LinAlgError:
-        return float("inf"), float("inf"), float("inf"), np.full((n, n), np.inf)
+        return (float("inf"), float("inf"), float("inf"), np.full((n, n), np.inf),
+                float("inf"))
     corner = float(np.sqrt(max(grad @ terms @ grad, 0.0)))
     corner_noise = float(np.sqrt(max(grad @ noise[:n, :n] @ grad, 0.0)))
     offset = float(np.sqrt(max(yaw_per_term @ terms @ yaw_per_term, 0.0)))
-    return corner, corner_noise, lens.focal_px * offset, terms
+    independent = float(grad @ iid[:n, :n] @ grad)
+    inflation = corner_noise**2 / independent if independent > 0 else float("inf")
+    return corner, corner_noise, lens.focal_px * offset, terms, inflation
 
 
 def _plain_jacobian(problem: _Problem, p: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -249,19 +249,19 @@ def estimate_depth(
     check_distinct(left, right, back)  # after matching: a blank scene says so first
     check_roles(raw_lr, raw_lb, rig.baseline_lb_m)
     lap("matching", 0.2)
-    lens, lens_fit = _lens(raw_lr, raw_lb, rig, size, s)
+    (lens, right_lens, back_lens), lens_fit = _lenses(raw_lr, raw_lb, rig, size, s)
     if lens_fit is not None:
         lap("lens", 0.25)
-    m_lr, m_lb = _ideal(raw_lr, lens), _ideal(raw_lb, lens)
-    rect = pseudo_rectify(m_lr, rig.focal_px, size, s)
+    m_lr, m_lb = _ideal(raw_lr, lens, right_lens), _ideal(raw_lb, lens, back_lens)
+    rect = pseudo_rectify(m_lr, rig.focal_px, size, s, lens)
     check_parallax(m_lr, rect)
     scale = s.stereo_scale
-    rl, rr = warp_pair(left, right, rect, scale, lens)
+    rl, rr = warp_pair(left, right, rect, scale, lens, right_lens)
     lap("rectification", 0.35)
     lo, hi = rect.disparity_range
     rng = (int(np.floor(lo * scale)), int(np.ceil(hi * scale)))
     disparity = matcher(rl, rr, rng)
-    left_fp, right_fp = footprints(rect, size, scale, lens=lens)
+    left_fp, right_fp = footprints(rect, size, scale, lens=lens, right_lens=right_lens)
     surface = surface_mask(rl, left_fp, s.min_texture, s.texture_window_px)
     disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
     lap("stereo", 0.75)
@@ -269,9 +269,9 @@ def estimate_depth(
         m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
     )
     lap("ambiguity", 0.8)
-    agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, lens, rig.baseline_lr_m,
-                           rig.baseline_lb_m, s.min_agreement, s.agreement_window_px,
-                           s.agreement_margin_px)
+    agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, back_lens,
+                           rig.baseline_lr_m, rig.baseline_lb_m, s.min_agreement,
+                           s.agreement_window_px, s.agreement_margin_px)
     if agree.disagree.any():
         disparity = np.where(agree.disagree, np.nan, disparity).astype(np.float32)
         if _touches(m_lb, agree.disagree, rect, scale):
@@ -330,21 +330,23 @@ def _settings(
         raise InputError(str(exc)) from None
 
 
-def _lens(
+def _lenses(
     raw_lr: Matches, raw_lb: Matches, rig: RigGeometry, size: tuple[int, int],
     s: PipelineSettings,
-) -> tuple[Lens, LensFit | None]:
-    """The lens the later stages use: the given one, refined from the views unless
-    ``s.distortion_terms`` is 0 (:mod:`rigkit.pipeline.distortion`)."""
+) -> tuple[tuple[Lens, Lens, Lens], LensFit | None]:
+    """The lens the later stages use, as each view (left, right, back) sees it: the
+    given one, refined from the views unless ``s.distortion_terms`` is 0, each view
+    bent about its own fitted centre (:mod:`rigkit.pipeline.distortion`)."""
     given = Lens(rig.focal_px, size, rig.distortion)
     if not s.distortion_terms:
-        return given, None
+        return (given, given, given), None
     start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
     fit = refine_lens(
         raw_lr, raw_lb, start, given, rig.baseline_lr_m, rig.baseline_lb_m, s.distortion_terms,
         s.principal_point_sigma * size[0], s.jackknife_blocks,
     )
-    return Lens(rig.focal_px, size, fit.distortion), fit
+    return (fit.lens(rig.focal_px, size, 0), fit.lens(rig.focal_px, size, 1),
+            fit.lens(rig.focal_px, size, 2)), fit
 
 
 def _touches(m: Matches, mask: np.ndarray, rect: Rectification, scale: float) -> bool:
@@ -372,11 +374,13 @@ def _without_disagreeing(
         return amb
 
 
-def _ideal(m: Matches, lens: Lens) -> Matches:
-    """``m`` with both sides moved from recorded to ideal pinhole pixels."""
-    if lens.identity:
+def _ideal(m: Matches, lens: Lens, other_lens: Lens | None = None) -> Matches:
+    """``m`` with both sides moved from recorded to ideal pinhole pixels, the left one
+    through ``lens``, the other view's through ``other_lens`` (None: ``lens``)."""
+    other_lens = other_lens or lens
+    if lens.identity and other_lens.identity:
         return m
-    return replace(m, left=lens.to_ideal(m.left), other=lens.to_ideal(m.other))
+    return replace(m, left=lens.to_ideal(m.left), other=other_lens.to_ideal(m.other))
 
 
 def _depth_sigma(

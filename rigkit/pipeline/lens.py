@@ -1,11 +1,13 @@
 """The lens: from the pixels a camera recorded to the ideal pinhole pixels the geometry
 of the other stages works in, and back.
 
-All three views come from one lens (or identical ones) at one focal length, so one
-:class:`Lens` serves them all. Its model is OpenCV's radial-tangential distortion
-(:func:`rigkit.geometry.distort`) about the image centre, the same point the
-rectification takes as principal point. Without distortion every map is the identity
-and costs nothing.
+All three views come from one lens (or identical ones) at one focal length, so they
+share its distortion terms. Its model is OpenCV's radial-tangential distortion
+(:func:`rigkit.geometry.distort`) about the view's principal point: the image centre,
+which the rectification takes as principal point, unless a ``shift`` says where that
+view's sits (three cameras are not centred alike; fitted from the views, see
+:mod:`rigkit.pipeline.distortion`). Without distortion every map is the identity and
+costs nothing.
 """
 
 from __future__ import annotations
@@ -23,19 +25,30 @@ GRID_STEP = 16  # px between the exact samples of a dense map (bilinear in betwe
 @dataclass(frozen=True)
 class Lens:
     """``focal_px``: f (px); ``size``: (W, H) of the recorded images; ``distortion``:
-    OpenCV ``k1, k2, p1, p2, k3`` on normalised coordinates about the image centre."""
+    OpenCV ``k1, k2, p1, p2, k3`` on normalised coordinates about :attr:`centre`;
+    ``shift``: (x, y) px from the image centre to this view's principal point, the
+    centre of its distortion. The ideal pixels are those of a pinhole camera whose
+    principal point is the image centre, as the later stages take every view's to
+    be: a view's shift is taken out with its bend."""
 
     focal_px: float
     size: tuple[int, int]
     distortion: Distortion = NO_DISTORTION
+    shift: tuple[float, float] = (0.0, 0.0)
 
     @property
     def identity(self) -> bool:
-        return self.distortion == NO_DISTORTION
+        return self.distortion == NO_DISTORTION and self.shift == (0.0, 0.0)
+
+    @property
+    def image_centre(self) -> np.ndarray:
+        """(2,) px: the centre of the recorded image, the ideal pixels' principal point."""
+        return np.array([(self.size[0] - 1) / 2, (self.size[1] - 1) / 2])
 
     @property
     def centre(self) -> np.ndarray:
-        return np.array([(self.size[0] - 1) / 2, (self.size[1] - 1) / 2])
+        """(2,) px: the centre of the distortion, the image centre plus ``shift``."""
+        return self.image_centre + np.array(self.shift)
 
     def to_ideal(self, pts: np.ndarray) -> np.ndarray:
         """Recorded pixels (N, 2) float64 (u, v) -> ideal pinhole pixels (N, 2)."""
@@ -43,13 +56,13 @@ class Lens:
             return pts
         n = (pts - self.centre) / self.focal_px
         x, y = undistort(n[:, 0], n[:, 1], self.distortion)
-        return np.stack([x, y], axis=1) * self.focal_px + self.centre
+        return np.stack([x, y], axis=1) * self.focal_px + self.image_centre
 
     def to_recorded(self, pts: np.ndarray) -> np.ndarray:
         """Ideal pinhole pixels (..., 2) float64 -> recorded pixels (..., 2)."""
         if self.identity:
             return pts
-        n = (pts - self.centre) / self.focal_px
+        n = (pts - self.image_centre) / self.focal_px
         x, y = distort(n[..., 0], n[..., 1], self.distortion)
         return np.stack([x, y], axis=-1) * self.focal_px + self.centre
 

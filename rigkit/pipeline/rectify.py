@@ -104,10 +104,12 @@ def pseudo_rectify(
     f: float,
     image_size: tuple[int, int],
     settings: PipelineSettings = DEFAULT,
+    lens: Lens | None = None,
 ) -> Rectification:
     """Fit rectifying rotations to left/right ``matches`` (ideal pinhole pixels, see
     :mod:`rigkit.pipeline.lens`) for focal length ``f`` (px) and original image
-    ``image_size`` (w, h)."""
+    ``image_size`` (w, h); the canvas holds the left image as its ``lens`` (None: a
+    pinhole) puts it in ideal pixels."""
     w, h = image_size
     K = intrinsics(f, (w - 1) / 2, (h - 1) / 2)
     pl, pr = matches.left, matches.other
@@ -131,6 +133,8 @@ def pseudo_rectify(
 
     # Canvas: the left image's rectified footprint; right image shifted to small disparities.
     corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], float)
+    if lens is not None:
+        corners = lens.to_ideal(corners)
     wc = apply_homography(Hl, corners)
     lo = np.floor(wc.min(axis=0))
     size = (int(np.ceil(wc[:, 0].max() - lo[0])) + 1, int(np.ceil(wc[:, 1].max() - lo[1])) + 1)
@@ -176,20 +180,22 @@ def warp_pair(
     rect: Rectification,
     scale: float = 1.0,
     lens: Lens | None = None,
+    right_lens: Lens | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Warp both recorded images onto the rectified canvas, optionally downscaled by
-    ``scale``, through the ``lens`` (None: a distortion-free pinhole).
+    ``scale``, through the ``lens`` (None: a distortion-free pinhole), the right image
+    through ``right_lens`` where given.
 
     Returns float32 images of the canvas size times ``scale``; pixels from outside the
     source image are 0.
     """
     out = []
-    for img, H in ((left, rect.H_left), (right, rect.H_right)):
+    for img, H, view_lens in ((left, rect.H_left, lens), (right, rect.H_right, right_lens or lens)):
         if scale != 1.0:
             # Area-average first so the warp does not alias, then one bilinear warp.
             small = (round(img.shape[1] * scale), round(img.shape[0] * scale))
             img = cv2.resize(img, small, interpolation=cv2.INTER_AREA)
-        out.append(_warp(img, H, rect, scale, lens, cv2.INTER_LINEAR))
+        out.append(_warp(img, H, rect, scale, view_lens, cv2.INTER_LINEAR))
     return out[0], out[1]
 
 
@@ -221,15 +227,17 @@ def footprints(
     scale: float,
     margin: int = 1,
     lens: Lens | None = None,
+    right_lens: Lens | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Where the left and right images land on the ``scale``-resized rectified canvas:
-    two (h, w) bool masks, eroded by ``margin`` px so matching windows stay inside."""
+    two (h, w) bool masks, eroded by ``margin`` px so matching windows stay inside;
+    through ``lens`` (the right image through ``right_lens`` where given)."""
     small = (round(image_size[0] * scale), round(image_size[1] * scale))
     ones = np.full((small[1], small[0]), 255, np.uint8)
     kernel = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
     masks = []
-    for H in (rect.H_left, rect.H_right):
-        m = _warp(ones, H, rect, scale, lens, cv2.INTER_NEAREST)
+    for H, view_lens in ((rect.H_left, lens), (rect.H_right, right_lens or lens)):
+        m = _warp(ones, H, rect, scale, view_lens, cv2.INTER_NEAREST)
         masks.append(cv2.erode(m, kernel) > 0)
     return masks[0], masks[1]
 

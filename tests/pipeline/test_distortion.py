@@ -117,23 +117,32 @@ def test_too_few_three_view_tracks_keep_the_given_lens() -> None:
     assert fit.as_dict()["tracks"] == 20 and fit.as_dict()["corner_shift_sigma_px"] is None
 
 
-def test_principal_points_apart_are_in_the_standard_error() -> None:
-    # Right and back principal points ~15 px from the left one's bend the tracks like
-    # a lens: the fit is off by more than its noise sigma says, and within two sigma
-    # once the principal points' spread (10 px per camera) is considered.
+def test_principal_points_apart_are_fitted_with_the_lens() -> None:
+    # Three cameras, each bending its image about its own principal point (9-16 px
+    # from the image centre, and from each other): bent about the image centre in
+    # every view, the tracks read the lens off by more than the noise sigma says. Where
+    # the principal points may differ (a prior of 10 px per camera), each view's centre
+    # is fitted with the lens: recovered to a few px, and the bend with them.
     k1 = _k1_for_corner(0.003)
-    shifted = {"right": (12.0, -8.0), "back": (-10.0, 14.0)}
+    shifted = {"left": (9.0, 6.0), "right": (12.0, -8.0), "back": (-10.0, 14.0)}
     tracks = _tracks(k1, 0.05, np.random.default_rng(5), pp=shifted)
     true = corner_shift_px(Lens(F, (W, H), (k1, 0, 0, 0, 0)))
-    plain, honest = _fit(*tracks), _fit(*tracks, pp_sigma_px=10.0)
-    assert honest.corner_px == plain.corner_px  # the estimate itself is unchanged
-    # ... and so is the decision to take it, which weighs the noise alone
-    assert honest.corner_noise_sigma_px == pytest.approx(plain.corner_sigma_px)
-    assert honest.significant == plain.significant
-    assert abs(plain.corner_px - true) > plain.corner_sigma_px
-    assert honest.corner_sigma_px > 1.5 * plain.corner_sigma_px
-    assert abs(honest.corner_px - true) < 2 * honest.corner_sigma_px
-    assert honest.offset_sigma_px >= plain.offset_sigma_px
+    plain, fitted = _fit(*tracks), _fit(*tracks, pp_sigma_px=10.0)
+    assert plain.centres_px == ((0.0, 0.0),) * 3  # one principal point: nothing to fit
+    assert abs(plain.corner_px - true) > 2 * plain.corner_sigma_px
+    assert fitted.significant
+    for view, centre in zip(("left", "right", "back"), fitted.centres_px, strict=True):
+        assert np.hypot(*np.subtract(centre, shifted[view])) < 5.0, view
+    assert abs(fitted.corner_px - true) < 0.4 * abs(plain.corner_px - true)
+    # The standard error still carries the principal points' prior (a consider term),
+    # and the decision to take the lens weighs the noise alone.
+    assert fitted.corner_noise_sigma_px == pytest.approx(plain.corner_sigma_px)
+    assert fitted.corner_sigma_px > 1.5 * plain.corner_sigma_px
+    assert fitted.offset_sigma_px >= plain.offset_sigma_px
+    # The later stages bend each view about its own centre.
+    back = fitted.lens(F, (W, H), 2)
+    assert back.shift == fitted.centres_px[2] and back.distortion == fitted.distortion
+    assert fitted.as_dict()["centres_px"]["right"] == [round(c, 2) for c in fitted.centres_px[1]]
 
 
 def test_cluster_covariance_sees_errors_shared_within_blocks() -> None:

@@ -28,3 +28,20 @@ def test_ideal_rows_without_distortion_are_the_pixel_indices() -> None:
     u, v = Lens(66000.0, (640, 480)).ideal_rows(100, 164)
     assert u.shape == (1, 640) and v.shape == (64, 1)
     assert u[0, 639] == 639 and v[0, 0] == 100 and v[63, 0] == 163
+
+
+def test_a_view_bent_about_its_own_centre_maps_to_a_centred_pinhole() -> None:
+    # The camera's principal point (its centre of distortion) 20 px right and 12 px up
+    # of the image centre: that point is the ideal image's centre, the ideal pixels
+    # are the undistorted ones about it, and the two maps invert each other.
+    lens = Lens(5000.0, (800, 600), (0.4, 0.0, 0.0, 0.0, 0.0), shift=(20.0, -12.0))
+    assert not lens.identity
+    assert not Lens(5000.0, (800, 600), shift=(1.0, 0.0)).identity  # a shift alone moves them
+    centre = np.array([[399.5 + 20.0, 299.5 - 12.0]])
+    assert np.allclose(lens.to_ideal(centre), [[399.5, 299.5]])
+    pts = np.array([[10.0, 20.0], [790.0, 580.0], [400.0, 10.0]])
+    assert np.allclose(lens.to_recorded(lens.to_ideal(pts)), pts, atol=1e-6)
+    plain = Lens(5000.0, (800, 600), (0.4, 0.0, 0.0, 0.0, 0.0))
+    bend = lens.to_ideal(pts) - (pts - np.array([20.0, -12.0]))
+    assert np.allclose(bend, plain.to_ideal(pts - np.array([20.0, -12.0])) -
+                       (pts - np.array([20.0, -12.0])), atol=1e-9)
