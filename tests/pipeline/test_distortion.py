@@ -247,3 +247,22 @@ def test_bad_tracks_do_not_drag_the_fit_to_another_rig() -> None:
     assert fit.corner_sigma_px < 2 * clean.corner_sigma_px
     assert abs(fit.corner_px) < 3 * clean.corner_sigma_px
     assert not fit.significant
+
+
+def test_a_rejected_profile_is_fitted_again_as_if_none_were_given() -> None:
+    # estimate_depth rectifies under the given lens to start the fit; once the views
+    # reject that lens, the fit from nothing must not start from its rectification
+    # (under lensfun's P1000 profile, 77 px at the corner, one field scene's fit from
+    # nothing settled with 5x the tracks' RMS of the fit without a profile).
+    k1 = _k1_for_corner(0.002)
+    rc2 = (np.hypot(W - 1, H - 1) / 2 / F) ** 2
+    profile = (30 * k1, -40 * k1 / rc2, 0.0, 0.0, 20 * k1 / rc2**2)
+    m_lr, m_lb = _tracks(k1, 0.05, np.random.default_rng(8), pp={"back": (6.0, -9.0)})
+    bent = Lens(F, (W, H), profile)
+    under_profile = replace(m_lr, left=bent.to_ideal(m_lr.left), other=bent.to_ideal(m_lr.other))
+    rect = pseudo_rectify(under_profile, F, (W, H))
+    rejected = refine_lens(m_lr, m_lb, rect, bent, 2.0, 2.0, 1, 10.0)
+    plain = _refine(m_lr, m_lb, (0.0,) * 5, pp_sigma_px=10.0)
+    assert rejected.start_rejected and not plain.start_rejected
+    assert rejected.corner_px == pytest.approx(plain.corner_px, abs=1e-6)
+    assert np.allclose(rejected.centres_px, plain.centres_px, atol=1e-6)
