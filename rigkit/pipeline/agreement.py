@@ -134,21 +134,6 @@ def right_at_disparity(right: np.ndarray, disparity: np.ndarray, dy: float = 0.0
                      borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
 
 
-def back_at_depth(
-    back: np.ndarray, disparity: np.ndarray, scale: float, rect: Rectification,
-    amb: Ambiguity, lens: Lens, baseline_lr_m: float, baseline_lb_m: float,
-) -> np.ndarray:
-    """The back image sampled where each pixel of the ``scale``-resized rectified left
-    canvas lands in it, given its disparity (px on that canvas, ``x_left - x_right``)
-    and the geometry fitted by ambiguity removal: (h, w) float32, NaN where there is
-    no disparity or the point falls outside the back image.
-
-    back: (H, W) float32, the recorded back image at full resolution."""
-    small = _resized(back, scale)
-    xs, ys = back_positions(disparity, scale, rect, amb, lens, baseline_lr_m, baseline_lb_m)
-    return _sample(small, xs, ys)
-
-
 def _resized(image: np.ndarray, scale: float) -> np.ndarray:
     """``image`` area-averaged to ``scale`` (the stereo canvas's pixel size)."""
     small = (round(image.shape[1] * scale), round(image.shape[0] * scale))

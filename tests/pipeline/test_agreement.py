@@ -13,7 +13,7 @@ import pytest
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.agreement import (
     SHIMMER_STEP_MAX_PX,
-    back_at_depth,
+    back_positions,
     right_at_disparity,
     shimmer_steps,
     zncc,
@@ -83,9 +83,12 @@ def test_the_views_agree_where_the_world_stands_still(images, rig, result) -> No
     # camera see (high ZNCC), and little is refused.
     assert result.disagree.mean() < 0.02
     s = result.settings
-    back = back_at_depth(images["back"], result.disparity, result.disparity_scale,
-                         result.rectification, result.ambiguity, _lens(result, images),
-                         rig.baseline_lr_m, rig.baseline_lb_m)
+    scale = result.disparity_scale
+    xs, ys = back_positions(result.disparity, scale, result.rectification, result.ambiguity,
+                            _lens(result, images), rig.baseline_lr_m, rig.baseline_lb_m)
+    small = cv2.resize(images["back"], None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    back = cv2.remap(small, xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=np.nan)
     assert np.isfinite(back).mean() > 0.5
     assert s.min_agreement == 0.5
 
