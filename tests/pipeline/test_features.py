@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -9,11 +10,12 @@ from rigkit.errors import PipelineError
 from rigkit.pipeline.checks import affine_scale
 from rigkit.pipeline.features import (
     _check_alignment,
-    brightness_gain,
+    local_contrast,
     match_to,
     match_views,
     prepare_left,
 )
+from tests.pipeline.textures import plane_waves
 
 
 @pytest.mark.slow
@@ -27,20 +29,37 @@ def test_prepared_left_matches_both_views_as_on_its_own(images) -> None:
         assert np.array_equal(shared.other, alone.other)
 
 
-def test_brightness_gain_undoes_exposure_and_vignetting_but_not_noise(images) -> None:
-    reference = images["left"]
-    h, w = reference.shape
-    yy, xx = np.mgrid[0:h, 0:w]
-    r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / (w / 2) ** 2
-    shading = (0.6 * (1 - 0.3 * r2)).astype(np.float32)  # darker, vignetted
-    noise = np.random.default_rng(0).normal(0, 5, (h, w)).astype(np.float32)
-    image = np.clip(reference * shading + noise, 0, None)
-    image[:, : w // 4] = 0  # outside its footprint: left out of the means
-    gain = brightness_gain(image, reference)
-    inner = (slice(h // 8, -h // 8), slice(w // 4 + w // 8, -w // 8))
-    assert np.abs(gain[inner] * shading[inner] - 1).max() < 0.03
-    # Smooth: it follows neither the noise nor the texture (second differences).
-    assert np.abs(np.diff(gain[inner], 2, axis=1)).max() < 1e-4
+def test_tracks_hold_through_a_cloud_shadow_in_haze() -> None:
+    # Hazy texture 5 grey levels deep; in the other view the left half lies under a
+    # cloud shadow, which halves the sunlit texture but not the haze, and the exposure
+    # differs. Matching the mean alone kept 25 of the shadowed half's corners.
+    shift = np.array([0.3, -0.2])
+    left = (150 + 5 * plane_waves((0, 0))).astype(np.float32)
+    shade = np.ones((384, 384))
+    shade[:, :192] = 0.5
+    shade = cv2.GaussianBlur(shade, (0, 0), 20)
+    other = (0.9 * (150 + 5 * plane_waves((0.3, -0.2)) * shade)).astype(np.float32)
+    ref = prepare_left(left, n_points=400)
+    m = match_to(ref, other, "left/back")
+    shadowed = m.left[:, 0] < 192
+    assert shadowed.sum() > 0.8 * (ref.corners[:, 0] < 192).sum()
+    error = m.other - m.left + shift  # the texture at x appears at x - shift
+    assert np.abs(error).max() < 0.06
+    assert np.sqrt(np.mean(error**2)) < 0.025
+
+
+def test_local_contrast_ignores_gain_offset_and_the_unseen() -> None:
+    texture = (150 + 5 * plane_waves((0, 0))).astype(np.float32)
+    plain = local_contrast(texture).astype(int)
+    assert plain.std() > 20  # spread over the levels, not 5 of them
+    dimmer = local_contrast((0.6 * texture - 40).astype(np.float32)).astype(int)
+    assert np.abs(dimmer - plain).max() <= 1
+    cut = texture.copy()
+    cut[:, :100] = np.nan  # outside the view's footprint
+    seen = local_contrast(cut).astype(int)
+    assert (seen[:, :100] == 128).all()
+    # Next to the cut, the means are over what is seen: no step at its edge.
+    assert np.abs(seen[:, 100:] - plain[:, 100:]).mean() < 2
 
 
 def test_an_alignment_no_rig_gives_is_refused() -> None:

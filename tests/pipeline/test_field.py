@@ -76,7 +76,8 @@ def test_lens_distortion_given_or_fitted_is_undone(lens_scene, given, fitted, go
     if good:
         assert m.under_3 > 0.9 and abs(m.median_bias) < 0.01
     else:
-        assert m.under_3 < 0.1  # 0.4 % at the corner, not undone, ruins it
+        # 0.4 % at the corner, not undone, ruins it: the depth is off by percents
+        assert m.under_1 < 0.1 and abs(m.median_bias) > 0.015
     if fitted:
         size = (SMALL.width, SMALL.height)
         true_corner = corner_shift_px(Lens(truth.focal_px, size, (k1, 0.0, 0.0, 0.0, 0.0)))

@@ -106,7 +106,7 @@ def test_predicted_spread_is_the_fits_spread_over_shimmer_draws(shimmered) -> No
     as the bound's ``estimator_px`` says; and the best estimator does better."""
     truth, (left, _, back), rig, result = shimmered
     m = match_views(left, back, "left/back")
-    bound = offset_bound(truth, result, m.left, step_px=16.0)
+    bound = offset_bound(truth, result, m.left, step_px=12.0)
     kept, _, _, exact = exact_tracks(truth, result, m.left, visible_in_right(truth))
     m = replace(m, left=kept, other=exact)
     rng = np.random.default_rng(2)
