@@ -33,17 +33,17 @@ def test_tracks_hold_through_a_cloud_shadow_in_haze() -> None:
     # Hazy texture 5 grey levels deep; in the other view the left half lies under a
     # cloud shadow, which halves the sunlit texture but not the haze, and the exposure
     # differs. Matching the mean alone kept 25 of the shadowed half's corners.
-    shift = np.array([0.3, -0.2])
+    shift = (0.3, -0.2)
     left = (150 + 5 * plane_waves((0, 0))).astype(np.float32)
     shade = np.ones((384, 384))
     shade[:, :192] = 0.5
     shade = cv2.GaussianBlur(shade, (0, 0), 20)
-    other = (0.9 * (150 + 5 * plane_waves((0.3, -0.2)) * shade)).astype(np.float32)
+    other = (0.9 * (150 + 5 * plane_waves(shift) * shade)).astype(np.float32)
     ref = prepare_left(left, n_points=400)
     m = match_to(ref, other, "left/back")
     shadowed = m.left[:, 0] < 192
     assert shadowed.sum() > 0.8 * (ref.corners[:, 0] < 192).sum()
-    error = m.other - m.left + shift  # the texture at x appears at x - shift
+    error = m.other - m.left + np.array(shift)  # the texture at x appears at x - shift
     assert np.abs(error).max() < 0.06
     assert np.sqrt(np.mean(error**2)) < 0.025
 
