@@ -204,7 +204,8 @@ def local_contrast(image: np.ndarray, window: int = CONTRAST_WINDOW_PX) -> np.nd
     mean, spread = (cv2.resize(a, (w, h), interpolation=cv2.INTER_LINEAR) for a in (mean, spread))
     z = cv2.divide(cv2.subtract(values, mean), spread, scale=32.0)
     out = cv2.add(z, 128.0, dtype=cv2.CV_8U)  # type: ignore[call-overload]  # rounds, saturates
-    out[outside] = 128
+    if cut:
+        out[outside] = 128
     return out
 
 
