@@ -4,12 +4,15 @@ and side by side the time of a plain reading of the paper's method on the same i
 (rigkit's matcher, then :func:`rigkit.experiments.paper.paper_depth`).
 
     python benchmarks/bench_depth.py [--work out/bench] [--sizes 1152,2304,4608] [--burst 5]
+                                     [--default-memory]
 
 Each size runs in a fresh process so that peak memory (max RSS) is its own; the
 paper's method runs after rigkit in that process (its peak is not reported). With
 ``--burst N`` every position is a burst of N frames, read as ``rigkit depth`` reads
 one (:func:`rigkit.capture.frames.load_capture`: decoded, aligned, median-stacked);
 ``load`` then includes the stacking, and the paper's method runs on the stacked triple.
+Memory for large arrays is set up as the ``rigkit`` command sets it up
+(:func:`rigkit.core.memory.tune_for_images`) unless ``--default-memory`` is given.
 """
 
 from __future__ import annotations
@@ -23,11 +26,14 @@ import time
 from pathlib import Path
 
 
-def run_one(scene: Path) -> dict:
+def run_one(scene: Path, tune: bool) -> dict:
+    from rigkit.core.memory import tune_for_images
     from rigkit.pipeline import RigGeometry, estimate_depth
     from rigkit.pipeline.images import load_grey
     from rigkit.synth import load_scene
 
+    if tune:  # as the rigkit command does
+        tune_for_images()
     truth = load_scene(scene)
     rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
     views = ("left", "right", "back")
@@ -76,10 +82,13 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=Path("out/bench"))
     ap.add_argument("--sizes", default="1152,2304,4608")
     ap.add_argument("--burst", type=int, default=1, help="frames per position (default 1)")
+    ap.add_argument("--default-memory", action="store_true",
+                    help="leave the C allocator's and NumPy's defaults for large arrays, "
+                    "to see what rigkit.core.memory saves")
     ap.add_argument("--one", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
-        print(json.dumps(run_one(args.one)))
+        print(json.dumps(run_one(args.one, tune=not args.default_memory)))
         return 0
     from rigkit.synth import SynthParams, generate_scene, write_scene
 
@@ -95,7 +104,8 @@ def main() -> int:
             params = SynthParams(width=w, height=h, burst=args.burst)
             write_scene(generate_scene(params, seed=1), scene)
         out = subprocess.run(
-            [sys.executable, __file__, "--one", str(scene)],
+            [sys.executable, __file__, "--one", str(scene)]
+            + (["--default-memory"] if args.default_memory else []),
             capture_output=True,
             text=True,
             check=True,

@@ -11,6 +11,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 
 from rigkit import __version__
+from rigkit.core.memory import tune_for_images
 from rigkit.errors import RigkitError, environment_message
 
 # Subcommand modules under rigkit.commands, in the order --help lists them.
@@ -45,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    tune_for_images()  # fresh pages for every image-sized array: ~1 s of a triple
     try:
         with _quiet_libraries():
             code: int = args.func(args)

@@ -1,11 +1,12 @@
-"""The stereo disparity: sub-pixel accuracy (rigkit.pipeline.stereo.SGBM) and hole
-filling (rigkit.pipeline.stereo.fill_holes)."""
+"""The stereo disparity: sub-pixel accuracy (rigkit.pipeline.stereo.SGBM), the
+footprint check (rigkit.pipeline.stereo.restrict_to_footprints) and hole filling
+(rigkit.pipeline.stereo.fill_holes)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from rigkit.pipeline.stereo import SGBM, fill_holes
+from rigkit.pipeline.stereo import SGBM, fill_holes, restrict_to_footprints
 from tests.pipeline.textures import plane_waves
 
 NAN = np.nan
@@ -63,3 +64,15 @@ def test_disparities_are_not_drawn_to_whole_pixels() -> None:
         assert np.isfinite(error).mean() > 0.99
         assert abs(np.nanmedian(error)) < 0.05
         assert np.nanpercentile(np.abs(error), 90) < 0.1
+
+
+def test_a_match_outside_the_right_footprint_is_dropped() -> None:
+    # Left columns 0..5 with their disparities; the right image shows columns 2..5 only.
+    # Matches land at x - d: 3 (seen), 2.5 (halves go to the even column 2: seen),
+    # 1.5 (to 2: seen), 1 (unseen), -1 (off the image), and an unknown disparity.
+    disp = _row(-3, -1.5, 0.5, 2, 5, NAN)
+    right_valid = np.array([[False, False, True, True, True, True]])
+    left_valid = np.ones_like(right_valid)
+    left_valid[0, 0] = False  # and a left pixel outside its own footprint
+    out = restrict_to_footprints(disp, left_valid, right_valid)
+    np.testing.assert_array_equal(out, _row(NAN, -1.5, 0.5, NAN, NAN, NAN))
