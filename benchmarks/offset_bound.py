@@ -1,23 +1,26 @@
-"""How close one frame per position can come to the field bar on the median depth bias:
-the pipeline's offset error against the Cramér–Rao bound under the scene's shimmer.
+"""How close the frames taken at each position can come to the field bar on the median
+depth bias: the pipeline's offset error against the Cramér–Rao bound under the scene's
+shimmer.
 
     python benchmarks/offset_bound.py out/field20/scenes/seed-2*
 
-Per rendered scene (``rigkit synth`` with heat shimmer; frame 0 of a burst), px of
-disparity offset (rigkit.synth.bound defines the two figures):
+Per rendered scene (``rigkit synth`` with heat shimmer of the gaussian or vonkarman
+spectrum; a burst scene is read as ``rigkit depth`` reads one, its frames stacked),
+px of disparity offset (rigkit.synth.bound defines the two figures):
 
 * ``error``: the pipeline's offset error (median over judged pixels of
   f C_lr (1/z_est - 1/z_true)); ``reported``: the standard error it reports;
 * ``estimator``: the spread the shimmer gives the pipeline's least-squares offset on
   its own matches; ``surface``: on every point of the surface instead (a grid);
   ``bound``: the smallest spread any estimator can have, using every point of the
-  surface and the shimmer's exact covariance;
+  surface and the shimmer's exact covariance (averaged over a burst's frames);
 * ``bar``: the field bar, |median depth bias| <= 0.3 %, as px of offset (0.3 % of the
   median true disparity f C_lr / z); ``P(bound)``: the chance that an offset error of
   spread ``bound`` stays within the bar.
 
-``--corr-px C`` computes the figures for shimmer of another correlation length on the
-same scenes (the error and the reported sigma stay the rendered shimmer's).
+``--corr-px C`` computes the figures for gaussian shimmer of another correlation
+length on the same scenes (the error and the reported sigma stay the rendered
+shimmer's).
 
 The summary gives how many scenes meet the bar, how many are expected to with the
 pipeline's estimator and with the best one, and the chance that all of them do.
@@ -33,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rigkit.capture.frames import frame_files, load_capture
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
 from rigkit.pipeline import RigGeometry, estimate_depth
@@ -56,7 +60,12 @@ def analyse(
     truth = load_scene(scene_dir)
     if corr_px is not None:  # the same scene under shimmer of another correlation length
         truth = replace(truth, params=replace(truth.params, shimmer_corr_px=corr_px))
-    left, right, back = (load_grey(truth.image_path(v)) for v in ("left", "right", "back"))
+    views = ("left", "right", "back")
+    if truth.params.burst > 1:  # stacked as rigkit depth stacks them
+        left, right, back = load_capture(
+            frame_files({v: truth.frame_paths(v) for v in views})).images
+    else:
+        left, right, back = (load_grey(truth.image_path(v)) for v in views)
     rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m)
     result = estimate_depth(left, right, back, rig)
     matches = match_views(left, back, "left/back")
@@ -91,7 +100,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenes", nargs="+", type=Path)
     ap.add_argument("--step-px", type=float, default=None,
-                    help="the dense grid's spacing (default: 0.7 shimmer correlation lengths)")
+                    help="the dense grid's spacing (default: 0.7 correlation lengths of "
+                    "gaussian shimmer, 1/32 of the outer scale of vonkarman shimmer)")
     ap.add_argument("--tracker-px", type=float, default=TRACKER_PX,
                     help=f"the tracker's own error per axis (default {TRACKER_PX:g})")
     ap.add_argument("--corr-px", type=float, default=None,

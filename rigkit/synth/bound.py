@@ -5,12 +5,23 @@ The offset is fitted from where the back camera sees points of the left image
 (:mod:`rigkit.pipeline.ambiguity`). Heat shimmer moves each frame's image by a smooth
 random field, so nearby matches share their errors, and more matches stop adding
 information once they are closer together than the shimmer's patches. The renderer's
-field (:func:`rigkit.synth.shimmer.shimmer_field`, white noise blurred by a Gaussian of
-sigma ``c``) has, per axis, the covariance ``rms^2 exp(-r^2 / (4 c^2))`` between points
-``r`` apart. A left/back match's error is the left frame's field at its left pixel plus
-the back frame's (an independent draw) at its back pixel - the coarse map between the
-views is close to a rotation, which leaves an isotropic field's statistics as they
-are - plus the tracker's own independent error.
+fields (:mod:`rigkit.synth.shimmer`) have, per axis, the covariance ``rms^2 rho(r)``
+between points ``r`` apart (:func:`shimmer_correlation`):
+
+* ``gaussian`` (white noise blurred by a Gaussian of sigma ``c``):
+  ``rho = exp(-r^2 / (4 c^2))``;
+* ``vonkarman`` (the power spectrum ``(f^2 + 1/L0^2)^(-11/6)``): the Matérn
+  correlation of smoothness ``nu = 5/6`` that this spectrum has in two dimensions,
+  ``rho = 2^(1-nu) / Gamma(nu) (k r)^nu K_nu(k r)`` with ``k = 2 pi / L0``
+  (Rasmussen & Williams, *Gaussian Processes for Machine Learning*, 2006, sec. 4.2.1).
+
+A left/back match's error is the left frame's field at its left pixel plus the back
+frame's (an independent draw) at its back pixel - the coarse map between the views is
+close to a rotation, which leaves an isotropic field's statistics as they are - plus
+the tracker's own independent error. With bursts of N frames per position the
+shimmer's part is divided by N: the mean of N independent draws, which the pipeline's
+per-pixel median of the frames can only approach (for Gaussian noise the median of 5
+has 1.4x the mean's variance), so the bound stays a bound.
 
 Linearised at the pipeline's fit, with that covariance known exactly:
 
@@ -19,20 +30,22 @@ Linearised at the pipeline's fit, with that covariance known exactly:
 * :attr:`OffsetBound.surface_px`: the same estimator on every point of the surface, on
   a grid finer than the shimmer's patches (what matching everywhere would give);
 * :attr:`OffsetBound.bound_px`: the generalised least-squares offset from those points,
-  weighted by the exact covariance. For Gaussian errors it is
-  the Cramér–Rao bound: no unbiased estimator working from the back view of one frame
-  per position has a smaller standard error. The left/right disparity does not help:
-  an offset is the one thing it cannot show (the paper's ambiguity).
+  weighted by the exact covariance. For Gaussian errors it is the Cramér–Rao bound:
+  no unbiased estimator working from the back view of the frames taken at each
+  position has a smaller standard error. The left/right disparity does not help: an
+  offset is the one thing it cannot show (the paper's ambiguity).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.spatial.distance import cdist
+from scipy.special import gamma, kv
 
 from rigkit.errors import InputError
 from rigkit.pipeline import DepthResult
@@ -43,43 +56,89 @@ from rigkit.synth.io import SceneTruth
 
 TRACKER_PX = 0.05  # a match's own error per axis, px, independent between matches
 GRID_STEP = 0.7  # the dense grid's spacing, in units of the shimmer's correlation length
+OUTER_GRID_STEP = 1 / 32  # von Karman: the grid's spacing, in outer scales
 # Central-difference steps for beta (rad), the back rotation (rad) and offset (m).
 _STEPS = np.array([1e-7, 1e-6, 1e-6, 1e-6, 1e-3, 1e-3])
 
 
 @dataclass(frozen=True)
 class OffsetBound:
-    """Standard errors (px of disparity offset) that one frame's shimmer leaves:
+    """Standard errors (px of disparity offset) that the frames' shimmer leaves:
     ``estimator_px`` of the pipeline's estimator on its ``matches`` matches,
     ``surface_px`` of that estimator and ``bound_px`` of the best one on
-    ``grid_points`` points of the surface."""
+    ``grid_points`` points of the surface, ``step_px`` apart."""
 
     estimator_px: float
     surface_px: float
     bound_px: float
     matches: int
     grid_points: int
+    step_px: float
+
+
+Correlation = Callable[[np.ndarray], np.ndarray]
+"""One axis of one frame's shimmer: the correlation between two points as a function
+of their squared distance (px^2, any shape; may be overwritten)."""
+
+
+def gaussian_correlation(corr_px: float) -> Correlation:
+    """``exp(-r^2 / (4 c^2))``: white noise blurred by a Gaussian of sigma ``corr_px``."""
+    scale = -1.0 / (4.0 * corr_px**2)
+
+    def rho(r2: np.ndarray) -> np.ndarray:
+        r2 *= scale
+        return np.exp(r2, out=r2)
+
+    return rho
+
+
+VON_KARMAN_NU = 5.0 / 6.0  # (f^2 + 1/L0^2)^(-11/6) = (f^2 + 1/L0^2)^(-(nu + 1)) in 2-D
+
+
+def vonkarman_correlation(outer_px: float) -> Correlation:
+    """The Matérn correlation of the von Karman spectrum of outer scale ``outer_px``
+    (module docstring); 1 at distance 0."""
+    nu, k = VON_KARMAN_NU, 2 * np.pi / outer_px
+    norm = 2 ** (1 - nu) / gamma(nu)
+
+    def rho(r2: np.ndarray) -> np.ndarray:
+        x = k * np.sqrt(r2, out=r2)
+        with np.errstate(invalid="ignore"):  # 0 * inf at distance 0
+            out = norm * x**nu * kv(nu, x)
+        out[x == 0] = 1.0
+        return out
+
+    return rho
+
+
+def shimmer_correlation(spectrum: str, corr_px: float, outer_px: float) -> Correlation:
+    """The correlation of the renderer's shimmer of ``spectrum`` (``SynthParams``'s
+    ``shimmer_spectrum``, ``shimmer_corr_px`` and ``shimmer_outer_px``). Raises
+    InputError for the fine spectrum, whose short correlation length would need a grid
+    of a few px over the whole image."""
+    if spectrum == "gaussian":
+        return gaussian_correlation(corr_px)
+    if spectrum == "vonkarman":
+        return vonkarman_correlation(outer_px)
+    raise InputError(f"the bound knows the covariance of gaussian and vonkarman shimmer "
+                     f"only, not of {spectrum}")
 
 
 def shimmer_covariance(
     left_px: np.ndarray,
     back_px: np.ndarray,
     rms_px: float,
-    corr_px: float,
+    correlation: Correlation,
     tracker_px: float = TRACKER_PX,
+    frames: int = 1,
 ) -> np.ndarray:
     """(N, N) float64 covariance (px^2) of one axis of the errors of N left/back matches
-    at left pixels ``left_px`` and back pixels ``back_px`` ((N, 2) px): the two frames'
-    shimmer (``rms_px`` per axis, Gaussian blur sigma ``corr_px``) and the tracker's."""
-    scale = -1.0 / (4.0 * corr_px**2)
-    cov = cdist(left_px, left_px, "sqeuclidean")
-    cov *= scale
-    np.exp(cov, out=cov)
-    other = cdist(back_px, back_px, "sqeuclidean")
-    other *= scale
-    cov += np.exp(other, out=other)
-    del other
-    cov *= rms_px**2
+    at left pixels ``left_px`` and back pixels ``back_px`` ((N, 2) px): the two
+    positions' shimmer (``rms_px`` per axis and frame, ``correlation`` between points,
+    averaged over ``frames`` independent frames) and the tracker's."""
+    cov = correlation(cdist(left_px, left_px, "sqeuclidean"))
+    cov += correlation(cdist(back_px, back_px, "sqeuclidean"))
+    cov *= rms_px**2 / frames
     cov[np.diag_indices_from(cov)] += tracker_px**2
     return cov
 
@@ -157,19 +216,26 @@ def offset_bound(
     tracker_px: float = TRACKER_PX,
 ) -> OffsetBound:
     """:class:`OffsetBound` of a rendered scene (``truth``) and the pipeline's
-    ``result`` on its first frames; ``matches_left_px`` (N, 2): the left pixels of the
-    pipeline's left/back matches; ``step_px``: the dense grid's spacing (default
-    ``GRID_STEP`` shimmer correlation lengths; memory grows as its inverse 4th power:
-    two N x N arrays, ~1.6 GB for 10 000 points). The lens is taken as ideal: on a
-    scene with distortion the figures are approximate. Raises InputError for a scene
-    without shimmer, with shimmer of another spectrum than gaussian, or with fewer than
-    ``MIN_MATCHES`` points on its surface."""
-    rms, corr = truth.params.shimmer_px, truth.params.shimmer_corr_px
-    if rms <= 0:
+    ``result`` on it (on a burst scene, from the stacked bursts: the shimmer is
+    averaged over ``truth.params.burst`` frames); ``matches_left_px`` (N, 2): the left
+    pixels of the pipeline's left/back matches; ``step_px``: the dense grid's spacing
+    (default ``GRID_STEP`` correlation lengths of gaussian shimmer, ``OUTER_GRID_STEP``
+    outer scales of von Karman shimmer; memory grows as its inverse 4th power: two N x
+    N arrays, ~1.6 GB for 10 000 points). The lens is taken as ideal: on a scene with
+    distortion the figures are approximate. Raises InputError for a scene without
+    shimmer, with shimmer of the fine spectrum, or with fewer than ``MIN_MATCHES``
+    points on its surface."""
+    p = truth.params
+    if p.shimmer_px <= 0:
         raise InputError(f"{truth.path}: the scene has no heat shimmer to bound the offset by")
-    if truth.params.shimmer_spectrum != "gaussian":
-        raise InputError(f"{truth.path}: the bound knows the covariance of gaussian shimmer "
-                         f"only, not of {truth.params.shimmer_spectrum}")
+    try:
+        correlation = shimmer_correlation(p.shimmer_spectrum, p.shimmer_corr_px,
+                                          p.shimmer_outer_px)
+    except InputError as exc:
+        raise InputError(f"{truth.path}: {exc}") from None
+    if step_px is None:
+        step_px = (OUTER_GRID_STEP * p.shimmer_outer_px if p.shimmer_spectrum == "vonkarman"
+                   else GRID_STEP * p.shimmer_corr_px)
     params = result.ambiguity.parameters
     f = result.rectification.K[0, 0]
     visible = visible_in_right(truth)
@@ -183,14 +249,15 @@ def offset_bound(
                 f"with (need {MIN_MATCHES}; a finer grid step?)"
             )
         J = back_view_jacobian(params, truth, result, xr, d)
-        return J, shimmer_covariance(left, back, rms, corr, tracker_px)
+        return J, shimmer_covariance(left, back, p.shimmer_px, correlation, tracker_px,
+                                     frames=max(p.burst, 1))
 
     def offset_px(covariance: np.ndarray) -> float:
         return f * float(np.sqrt(covariance[0, 0]))
 
     J, cov = model(matches_left_px)
     estimator, n = offset_px(ols_covariance(J, cov)), len(cov)
-    J, cov = model(surface_grid(visible.shape, step_px or GRID_STEP * corr))
+    J, cov = model(surface_grid(visible.shape, step_px))
     surface, n_grid = offset_px(ols_covariance(J, cov)), len(cov)
     return OffsetBound(
         estimator_px=estimator,
@@ -198,4 +265,5 @@ def offset_bound(
         bound_px=offset_px(gls_covariance(J, cov)),
         matches=n,
         grid_points=n_grid,
+        step_px=step_px,
     )

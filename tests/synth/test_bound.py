@@ -17,13 +17,15 @@ from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene
 from rigkit.synth.bound import (
     exact_tracks,
+    gaussian_correlation,
     gls_covariance,
     offset_bound,
     ols_covariance,
     shimmer_covariance,
+    vonkarman_correlation,
 )
 from rigkit.synth.evaluate import visible_in_right
-from rigkit.synth.shimmer import shimmer_field
+from rigkit.synth.shimmer import shimmer_field, vonkarman_field
 
 RMS, CORR = 0.3, 6.0
 
@@ -38,8 +40,28 @@ def test_covariance_is_the_renderers_shimmer() -> None:
         measured += [np.mean(dx[:, : dx.shape[1] - r] * dx[:, r:]) for r in lags]
     measured /= 8
     pts = np.array([[0.0, 0.0], [6.0, 0.0], [12.0, 0.0]])
-    model = shimmer_covariance(pts, pts, RMS, CORR, tracker_px=0.0)[0]
+    model = shimmer_covariance(pts, pts, RMS, gaussian_correlation(CORR), tracker_px=0.0)[0]
     assert model == pytest.approx(2 * measured, abs=0.05 * RMS**2)
+
+
+def test_von_karman_covariance_is_the_renderers_shimmer() -> None:
+    """The Matérn form against drawn von Karman fields (correlation 0.44 at a fifth of
+    the outer scale, 0.15 at two fifths, none at 1.2); averaged over a burst of 5
+    frames, a fifth of it."""
+    outer, lags = 100.0, (0, 20, 40, 120)
+    rng = np.random.default_rng(3)
+    measured = np.zeros(len(lags))
+    draws = 24
+    for _ in range(draws):
+        dx, _ = vonkarman_field((480, 640), RMS, outer, rng)
+        measured += [np.mean(dx[:, : dx.shape[1] - r] * dx[:, r:]) for r in lags]
+    measured /= draws
+    pts = np.array([[float(r), 0.0] for r in lags])
+    rho = vonkarman_correlation(outer)
+    model = shimmer_covariance(pts, pts, RMS, rho, tracker_px=0.0)[0]
+    assert model == pytest.approx(2 * measured, abs=0.05 * RMS**2)
+    burst = shimmer_covariance(pts, pts, RMS, rho, tracker_px=0.0, frames=5)[0]
+    assert burst == pytest.approx(model / 5)
 
 
 def _line_model(n: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -51,7 +73,7 @@ def _line_model(n: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     J[0::2, 2] = J[1::2, 2] = x / 400  # a scale, seen in both axes
     J[1::2, 1] = 1.0  # a shift in v
     J[1::2, 2] *= np.linspace(-1, 1, n) ** 2
-    return pts, J, shimmer_covariance(pts, pts + 50, RMS, 40.0)
+    return pts, J, shimmer_covariance(pts, pts + 50, RMS, gaussian_correlation(40.0))
 
 
 def test_estimator_covariances_are_their_spreads_on_correlated_noise() -> None:
@@ -76,7 +98,7 @@ def test_estimator_covariances_are_their_spreads_on_correlated_noise() -> None:
 
 def test_with_independent_errors_both_are_the_textbook_covariance() -> None:
     pts, J, _ = _line_model()
-    white = shimmer_covariance(pts, pts, 0.0, 1.0, tracker_px=0.2)
+    white = shimmer_covariance(pts, pts, 0.0, gaussian_correlation(1.0), tracker_px=0.2)
     textbook = 0.04 * np.linalg.inv(J.T @ J)
     assert ols_covariance(J, white) == pytest.approx(textbook)
     assert gls_covariance(J, white.copy()) == pytest.approx(textbook)
@@ -131,9 +153,9 @@ def test_a_scene_without_shimmer_has_no_bound(truth, result) -> None:
         offset_bound(truth, result, np.zeros((10, 2)))
 
 
-def test_other_shimmer_spectra_have_no_bound(truth, result) -> None:
-    params = replace(truth.params, shimmer_px=0.3, shimmer_spectrum="vonkarman")
-    with pytest.raises(InputError, match="gaussian shimmer only, not of vonkarman"):
+def test_fine_shimmer_has_no_bound(truth, result) -> None:
+    params = replace(truth.params, shimmer_px=0.3, shimmer_spectrum="fine")
+    with pytest.raises(InputError, match="gaussian and vonkarman shimmer only, not of fine"):
         offset_bound(replace(truth, params=params), result, np.zeros((10, 2)))
 
 
