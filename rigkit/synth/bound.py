@@ -66,14 +66,13 @@ class OffsetBound:
     """Standard errors (px of disparity offset) that the frames' shimmer leaves:
     ``estimator_px`` of the pipeline's estimator on its ``matches`` matches,
     ``surface_px`` of that estimator and ``bound_px`` of the best one on
-    ``grid_points`` points of the surface, ``step_px`` apart."""
+    ``grid_points`` points of the surface."""
 
     estimator_px: float
     surface_px: float
     bound_px: float
     matches: int
     grid_points: int
-    step_px: float
 
 
 Correlation = Callable[[np.ndarray], np.ndarray]
@@ -265,5 +264,4 @@ def offset_bound(
         bound_px=offset_px(gls_covariance(J, cov)),
         matches=n,
         grid_points=n_grid,
-        step_px=step_px,
     )
