@@ -1,4 +1,5 @@
-"""The lowest layer of shared mechanisms: atomic files, strict YAML, progress, tables.
+"""The lowest layer of shared mechanisms: atomic files, strict YAML, progress, tables,
+decoders' output, memory for image-sized arrays.
 
 Nothing here knows about cameras, sessions or depth; everything above may use it.
 """
