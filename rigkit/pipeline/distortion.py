@@ -440,10 +440,13 @@ def _lens_sigmas(
     takes every residual as independent, and a cluster-robust one over ``blocks`` x
     ``blocks`` spatial blocks of the left image: heat shimmer moves whole patches of
     tracks together, which the first cannot see. The principal points' consider term
-    is added to it. How the right camera's yaw follows the terms is their regression
-    in the noise covariance (the yaw is the y component of its rotation vector): a
-    right principal point that moves the yaw directly is the back view's to settle, not
-    the lens's."""
+    is added to it. How the right camera's yaw (the y component of its rotation vector)
+    follows the terms is the fit's own sensitivity, their regression in the
+    Gauss-Newton covariance: how far the yaw moves when the terms are held wrong. The
+    cluster-robust covariance's correlations say how the noise moves the two together,
+    not how one follows the other; on town bursts they put the lens's share of the
+    offset up to 7x too high (docs/results.md). A right principal point that moves the
+    yaw directly is the back view's to settle, not the lens's."""
     n = problem.n_terms
     # Each term is the fraction of the corner radius it moves the corner by.
     grad = np.full(n, corner_radius(lens) * lens.focal_px)
@@ -467,7 +470,7 @@ def _lens_sigmas(
         noise = max(iid, clustered, key=lambda c: float(grad @ c[:n, :n] @ grad))
         consider = shift_sensitivity(Jp, 4)  # rows per track: right u, v, back u, v
         terms = noise[:n, :n] + (consider @ consider.T)[:n, :n] * 2 * principal_point_sigma_px**2
-        yaw_per_term = np.linalg.solve(noise[:n, :n], noise[:n, n + 2])
+        yaw_per_term = np.linalg.solve(iid[:n, :n], iid[:n, n + 2])
     except np.linalg.LinAlgError:
         return (float("inf"), float("inf"), float("inf"), np.full((n, n), np.inf),
                 float("inf"))
