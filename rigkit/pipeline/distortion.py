@@ -290,12 +290,62 @@ def fit_distortion(
     :mod:`rigkit.pipeline.ambiguity`); whether the fit is taken depends on the noise
     part alone. ``blocks``: spatial blocks per image side for the noise part's
     cluster-robust estimate (:func:`_lens_sigmas`)."""
+    terms = _fit_terms(m_lr, m_lb, rect, lens, baseline_lr_m, baseline_lb_m, n_terms,
+                       principal_point_sigma_px, blocks)
+    return terms.centred()
+
+
+@dataclass(frozen=True)
+class _TermsFit:
+    """The first phase of :func:`fit_distortion`: the radial terms fitted and judged
+    (``result``, every view bent about the image centre), with what the second phase,
+    each view's own centre (:meth:`centred`), starts from. ``problem`` is None where
+    there was nothing to fit."""
+
+    result: LensFit
+    problem: _Problem | None = None
+    x: np.ndarray | None = None
+    opts: dict | None = None
+    inflation: float = float("inf")
+    principal_point_sigma_px: float = 0.0
+
+    def centred(self) -> LensFit:
+        """The result with each view bent about its own centre, fitted with the terms
+        where the fit is taken, under the given terms where those stand; as it is where
+        the lens in use does not bend or the views share one principal point."""
+        r, problem = self.result, self.problem
+        if (problem is None or self.x is None or self.opts is None
+                or self.principal_point_sigma_px <= 0 or r.distortion == NO_DISTORTION
+                or not np.isfinite(self.inflation)):
+            return r
+        n = problem.n_terms
+        start = self.x.copy()
+        if not r.significant:
+            start[:n] = 0.0
+        x, centres = _fit_centres(problem, start, self.opts, self.principal_point_sigma_px,
+                                  self.inflation, fixed_terms=0 if r.significant else n)
+        centred = replace(r, centres_px=tuple((float(u), float(v)) for u, v in centres))
+        if not r.significant:
+            return centred
+        fitted = problem.distortion(x)
+        lens = problem.lens
+        return replace(centred, distortion=fitted, fitted=fitted,
+                       corner_px=corner_shift_px(Lens(lens.focal_px, lens.size, fitted)))
+
+
+def _fit_terms(
+    m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, baseline_lr_m: float,
+    baseline_lb_m: float, n_terms: int, principal_point_sigma_px: float, blocks: int,
+) -> _TermsFit:
+    """The radial terms of :func:`fit_distortion` fitted and judged, every view bent
+    about the image centre."""
     pl, pr, pb = three_view_tracks(m_lr, m_lb)
     if len(pl) < MIN_TRACKS:
         # Too little seen by all three views to tell: keep the given lens, and say so.
         corner = corner_shift_px(lens)
-        return LensFit(lens.distortion, lens.distortion, lens.distortion, False, corner,
-                       float("inf"), corner, 0.0, len(pl), float("nan"), float("inf"))
+        return _TermsFit(LensFit(lens.distortion, lens.distortion, lens.distortion, False,
+                                 corner, float("inf"), corner, 0.0, len(pl), float("nan"),
+                                 float("inf")))
     keep = np.unique(np.linspace(0, len(pl) - 1, min(len(pl), MAX_TRACKS)).astype(int))
     tracks = (pl[keep], pr[keep], pb[keep])
     z0, back_rotvec = back_view_start(m_lb, lens.focal_px, lens.centre, baseline_lb_m)
@@ -311,40 +361,25 @@ def fit_distortion(
         fit, problem, lens, principal_point_sigma_px, blocks
     )
     err = np.linalg.norm(problem.residuals(fit.x).reshape(-1, 2), axis=1)
-    corner = corner_shift_px(Lens(lens.focal_px, lens.size, fitted))
-    start_corner = corner_shift_px(lens)
     # Noise in the tracks (heat shimmer above all) and the views' unknown principal
     # points move the fit even when the given lens is right: a change the views cannot
     # tell from them is not taken (on field scenes without distortion, weighing the
     # noise alone at 2 sigma took a lens in 4 of 9 runs and biased depth by 0.7 %).
     significant = _significant(fit.x[:n_terms], cov)
-    used = fitted if significant else lens.distortion
-    centres = np.zeros((3, 2))
-    if principal_point_sigma_px > 0 and used != NO_DISTORTION and np.isfinite(inflation):
-        # Each view is bent about its own centre: fitted with the terms where the fit
-        # is taken, under the given terms where those stand.
-        start = fit.x.copy()
-        if not significant:
-            start[:n_terms] = 0.0
-        x, centres = _fit_centres(problem, start, opts, principal_point_sigma_px,
-                                  inflation, fixed_terms=0 if significant else n_terms)
-        if significant:
-            fitted = used = problem.distortion(x)
-            corner = corner_shift_px(Lens(lens.focal_px, lens.size, fitted))
-    return LensFit(
-        distortion=used,
+    result = LensFit(
+        distortion=fitted if significant else lens.distortion,
         start=lens.distortion,
         fitted=fitted,
         significant=significant,
-        centres_px=tuple((float(u), float(v)) for u, v in centres),
-        corner_px=corner,
+        corner_px=corner_shift_px(Lens(lens.focal_px, lens.size, fitted)),
         corner_sigma_px=corner_sigma,
         offset_sigma_px=offset_sigma,
-        start_corner_px=start_corner,
+        start_corner_px=corner_shift_px(lens),
         tracks=len(tracks[0]),
         rms_px=float(np.sqrt(np.mean(err[err < 3.0] ** 2))),
         corner_noise_sigma_px=noise_sigma,
     )
+    return _TermsFit(result, problem, fit.x, opts, inflation, principal_point_sigma_px)
 
 
 def _fit_centres(
@@ -398,9 +433,10 @@ def refine_lens(
     _, k2, _, _, k3 = lens.distortion
     terms = max(n_terms, 2 if (k2 or k3) else 1)
     args = (baseline_lr_m, baseline_lb_m)
-    fit = fit_distortion(m_lr, m_lb, rect, lens, *args, terms, principal_point_sigma_px, blocks)
-    if lens.identity or not fit.significant:
-        return fit
+    first = _fit_terms(m_lr, m_lb, rect, lens, *args, terms, principal_point_sigma_px, blocks)
+    if lens.identity or not first.result.significant:
+        return first.centred()
+    # The views rule the given lens out: its centres are not worth fitting.
     # From no distortion, and from the rectification without the rejected lens: started
     # under the P1000 profile (77 px at the corner) one scene settled in a minimum with
     # 5x the tracks' RMS of the fit from nothing.
@@ -408,7 +444,7 @@ def refine_lens(
     bare = fit_distortion(m_lr, m_lb, bare_rect, Lens(lens.focal_px, lens.size), *args,
                           n_terms, principal_point_sigma_px, blocks)
     return replace(bare, distortion=bare.fitted, start=lens.distortion, significant=True,
-                   start_corner_px=fit.start_corner_px, start_rejected=True)
+                   start_corner_px=first.result.start_corner_px, start_rejected=True)
 
 
 def _significant(change: np.ndarray, cov: np.ndarray) -> bool:
