@@ -4,9 +4,7 @@
 # those comparisons, and (the example being synthetic) accuracy against ground truth.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python3 -m venv .venv
-.venv/bin/python -m pip install --quiet --upgrade pip
-.venv/bin/python -m pip install --quiet -e .
+bash scripts/setup.sh .venv ""  # the locked versions (requirements/lock.txt)
 .venv/bin/rigkit session show capture/example
 .venv/bin/rigkit process capture/example
 .venv/bin/rigkit report capture/example --out out/example-report

@@ -20,6 +20,7 @@ from typing import Any
 
 from rigkit.batch.pool import log_failure, safe_process
 from rigkit.batch.session import Outcome, new_run_id
+from rigkit.core.threads import available_cores, limit_threads
 from rigkit.errors import InputError
 
 CONNECT_TIMEOUT_S = 5.0
@@ -71,8 +72,9 @@ def run_on_cluster(
     distributed = _distributed()
     run_id = run_id or new_run_id()
     done = on_done or (lambda outcome: None)
+    sharing = _threads_per_host(client)
     futures = {
-        client.submit(safe_process, path.absolute(), run_id, force, pure=False,
+        client.submit(_process_task, path.absolute(), run_id, force, sharing, pure=False,
                       key=f"rigkit-process-{run_id}-{i}"): path
         for i, path in enumerate(paths)
     }
@@ -83,6 +85,24 @@ def run_on_cluster(
         outcomes[path] = outcome
         done(outcome)
     return [outcomes[path] for path in paths]
+
+
+def _threads_per_host(client: Any) -> dict[str, int]:
+    """How many tasks the cluster's workers on each host run at once (their threads)."""
+    hosts: dict[str, int] = {}
+    for worker in client.scheduler_info().get("workers", {}).values():
+        hosts[worker["host"]] = hosts.get(worker["host"], 0) + int(worker["nthreads"])
+    return hosts
+
+
+def _process_task(path: Path, run_id: str, force: bool, sharing: dict[str, int]) -> Outcome:
+    """:func:`safe_process` on a worker, with OpenCV and BLAS given the task's share of
+    the host's cores (its cores over the tasks its workers run at once), so that a
+    host's workers use its cores once, not once per task."""
+    worker = _distributed().get_worker()
+    tasks = sharing.get(worker.ip) or worker.state.nthreads
+    limit_threads(max(1, available_cores() // max(1, tasks)))
+    return safe_process(path, run_id, force)
 
 
 def _result(future: Any, path: Path, run_id: str) -> Outcome:

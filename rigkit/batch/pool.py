@@ -19,6 +19,7 @@ from typing import Any
 
 from rigkit.batch.session import Outcome, StageReport, new_run_id, process_session
 from rigkit.capture.session import is_session, load_session, log_event
+from rigkit.core.threads import available_cores, limit_threads
 from rigkit.errors import RigkitError, environment_message
 
 #: Memory a session needs, per pixel of one frame, at the peak of decoding and the
@@ -64,7 +65,7 @@ def auto_jobs(paths: Sequence[Path], available_bytes: int | None = None) -> int:
     need = BASE_BYTES + BYTES_PER_PIXEL * largest
     available = available_bytes if available_bytes is not None else _available_memory()
     by_memory = max(1, int(0.8 * available // need))
-    return max(1, min(by_memory, os.cpu_count() or 1, len(paths)))
+    return max(1, min(by_memory, available_cores(), len(paths)))
 
 
 def _session_pixels(path: Path) -> int:
@@ -130,7 +131,7 @@ def _run_parallel(
 ) -> list[Outcome]:
     context = multiprocessing.get_context("spawn")
     queue = context.Queue()
-    threads = max(1, (os.cpu_count() or 1) // jobs)
+    threads = max(1, available_cores() // jobs)
     listener = threading.Thread(target=_relay, args=(queue, report), daemon=True)
     listener.start()
     try:
@@ -173,11 +174,9 @@ _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 
 def _init_worker(queue: Any, threads: int, parent: int) -> None:
-    import cv2
-
     global _worker_queue
     _worker_queue = queue
-    cv2.setNumThreads(threads)
+    limit_threads(threads)  # N workers on N cores, not N x cores
     _die_with(parent)
 
 

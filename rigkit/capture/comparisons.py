@@ -71,12 +71,16 @@ COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(Comparison))
 _TYPES = {f.name: f.type for f in fields(Comparison)}
 
 
+SIGNIFICANT_DIGITS = 9
+"""Significant digits a float keeps in the log (micrometres at 1 km)."""
+
+
 def format_row(row: Comparison) -> dict[str, str]:
-    """The row as CSV strings: floats to 9 significant digits (micrometres at 1 km)."""
+    """The row as CSV strings: floats to :data:`SIGNIFICANT_DIGITS` significant digits."""
     out: dict[str, str] = {}
     for key, value in asdict(row).items():
         if isinstance(value, float):
-            out[key] = "nan" if not math.isfinite(value) else f"{value:.9g}"
+            out[key] = "nan" if not math.isfinite(value) else f"{value:.{SIGNIFICANT_DIGITS}g}"
         else:
             out[key] = str(value)
     return out

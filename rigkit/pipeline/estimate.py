@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from rigkit.core.threads import deterministic
 from rigkit.errors import InputError, PipelineError
 from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
 from rigkit.pipeline.agreement import view_agreement
@@ -211,6 +212,7 @@ def _check_sizes(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:
         raise InputError(f"images differ in size ({sizes}); all three must match")
 
 
+@deterministic
 def estimate_depth(
     left: np.ndarray,
     right: np.ndarray,

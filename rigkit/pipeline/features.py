@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from rigkit.core.threads import deterministic
 from rigkit.errors import PipelineError
 from rigkit.pipeline.settings import PipelineSettings
 
@@ -209,6 +210,7 @@ def local_contrast(image: np.ndarray, window: int = CONTRAST_WINDOW_PX) -> np.nd
     return out
 
 
+@deterministic
 def match_views(
     left: np.ndarray,
     other: np.ndarray,

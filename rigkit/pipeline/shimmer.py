@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.distance import pdist
 
+from rigkit.core.threads import deterministic
 from rigkit.errors import PipelineError
 from rigkit.pipeline.burst import frame_shift, textured_crop
 
@@ -63,6 +64,7 @@ class Shimmer:
                 "points": self.points}
 
 
+@deterministic
 def measure_shimmer(first: np.ndarray, other: np.ndarray, what: str = "burst") -> Shimmer:
     """:class:`Shimmer` from two (H, W) float32 grey frames of one camera position at
     full resolution (``what`` names them in errors). Raises PipelineError where the
