@@ -37,6 +37,7 @@ from rigkit.capture.session import (
 from rigkit.core.files import Content, check_free_space, replace_folder
 from rigkit.errors import InputError
 from rigkit.reporting.previews import preview_set
+from rigkit.reporting.scale import RunReference, run_scale_note
 from rigkit.reporting.verdict import Verdict, judge
 
 StageReport = Callable[[str, float], None]
@@ -134,7 +135,9 @@ def _process_locked(
     log_event(session.path, "process", f"run {run_id}: ok, {len(rows)} targets, {seconds:.1f} s")
     report("done", 1.0)
     density = float(np.isfinite(result.depth).mean())
-    verdict = judge(rows, run.profile, frames=run.burst_length, shortfalls=run.shortfalls)
+    reference = RunReference(result.median_depth_m, result.offset_depth_fraction)
+    verdict = judge(rows, run.profile, frames=run.burst_length, shortfalls=run.shortfalls,
+                    scale=run_scale_note(rows, run.profile, reference))
     return Outcome(
         session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
         seconds, rows, (*run.warnings, *_stray_warnings(session)), verdict,

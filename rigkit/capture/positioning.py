@@ -1,13 +1,19 @@
-"""Recording where the tripod stood (``rigkit session set-position``), under the
-session's lock like every other change to a session."""
+"""Recording what a session knows of its rig beyond frames and targets, under the
+session's lock like every other change to a session: where the tripod stood
+(``rigkit session set-position``) and the rig profile its frames are processed with
+(``rigkit session set-rig``, e.g. one ``rigkit rig calibrate`` wrote)."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 from pathlib import Path
 
 from rigkit.capture.session import Session, load_session, log_event, save_session, session_lock
 from rigkit.capture.tripod import TripodPosition, check_position
+from rigkit.core.files import file_sha256
+from rigkit.errors import InputError
+from rigkit.rig.profile import load_rig, rig_to_dict
 
 
 def set_tripod_position(path: Path, position: TripodPosition) -> Session:
@@ -25,4 +31,25 @@ def set_tripod_position(path: Path, position: TripodPosition) -> Session:
         log_event(current.path, "set-position",
                   f"lat {position.lat_deg:.7f} lon {position.lon_deg:.7f} height "
                   f"{position.height_m:.2f} m from {position.source}{was}")
+    return updated
+
+
+def set_rig(path: Path, rig_path: Path) -> Session:
+    """Process the session with the profile at ``rig_path`` from now on (a copy of its
+    values is kept, as ``session new`` keeps one); returns the session as saved. The
+    earlier profile stays named in ``history.log``; the results stay until the session
+    is processed again. InputError for a bad profile or one for another image size."""
+    profile = load_rig(rig_path)
+    with session_lock(Path(path), "set-rig"):
+        current = load_session(path)
+        size = current.rig().image_size
+        if profile.image_size != size:
+            raise InputError(
+                f"{rig_path}: for {profile.image_size[0]}x{profile.image_size[1]} px frames; "
+                f"the session's are {size[0]}x{size[1]} px")
+        updated = replace(current, rig_reference=os.path.abspath(rig_path),
+                          rig_sha256=file_sha256(rig_path), rig_values=rig_to_dict(profile))
+        save_session(updated)
+        log_event(current.path, "set-rig", f"rig {rig_path} ({profile.name}; was "
+                  f"{current.rig_reference}, {current.rig().name})")
     return updated

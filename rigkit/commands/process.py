@@ -130,4 +130,6 @@ def _outcome_lines(outcome: Any) -> list[str]:
         for row, target in zip(outcome.rows, outcome.verdict.targets, strict=True)
     ]
     lines.append(f"       verdict: {outcome.verdict.headline}")
+    if outcome.verdict.scale:
+        lines.append(f"       scale: {outcome.verdict.scale}")
     return lines

@@ -71,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.capture.comparisons import csv_text
     from rigkit.errors import InputError
     from rigkit.reporting.plots import plot_error_vs_range, plot_estimate_vs_laser, render
+    from rigkit.reporting.scale import session_scale_note
     from rigkit.reporting.summary import collect, format_text, summarize
 
     if not args.sessions:
@@ -82,6 +83,8 @@ def run(args: argparse.Namespace) -> int:
     for problem in torn:
         print(f"warning: {problem}", file=sys.stderr)
     text = format_text(rows, summarize(rows))
+    notes = [(path, session_scale_note(path)) for path in dict.fromkeys(args.sessions)]
+    text += "".join(f"scale of {path}: {note}\n" for path, note in notes if note)
     files: dict[str, str | bytes] = {"comparisons.csv": csv_text(rows), "report.txt": text}
     for stem, plot in zip(PLOTS, (plot_estimate_vs_laser, plot_error_vs_range), strict=True):
         figure = plot(rows)

@@ -112,6 +112,63 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     check.add_argument("--json", action="store_true", help="print JSON instead of tables")
     check.set_defaults(func=run_check)
+    _register_calibrate(sub)
+
+
+_CALIBRATE_EPILOG = """\
+examples:
+  rigkit rig calibrate capture/ridge-0412 --out rigs/ridge-0412.yaml   # taped anew
+  rigkit rig calibrate capture/van-* --out rigs/van-2026.yaml          # one fixed rig
+
+Fits C_lb (the depth maps' scale), and f*C_lr where the targets span enough depth, from
+the sessions' latest laser comparisons (process them first), each weighted by its laser
+accuracy and depth sigma; a target far off the others' fit is named and left out, and
+targets that disagree beyond their sigma stop it. Each target is checked by the fit
+made without it. Then: rigkit session set-rig SESSION --rig OUT; rigkit process SESSION.
+exit status: 0 written, 2 refused (nothing written). docs/rig-profiles.md, "Calibrating".
+"""
+
+
+def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    calibrate = sub.add_parser(
+        "calibrate",
+        help="fit the rig's scale (C_lb, f*C_lr) from sessions' laser targets",
+        description="Write a rig profile whose C_lb (and f*C_lr, where the targets see it)\n"
+                    "the sessions' laser targets fit, with the tolerances the fit leaves.",
+        epilog=_CALIBRATE_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    calibrate.add_argument("sessions", metavar="SESSION", type=Path, nargs="+",
+                           help="processed session folders of one rig")
+    calibrate.add_argument("--out", type=Path, required=True, help="the profile to write")
+    calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
+                           help="one laser reading's one-sigma error, m (default 0.3)")
+    calibrate.add_argument("--force", action="store_true", help="overwrite --out")
+    calibrate.set_defaults(func=run_calibrate)
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    """``rigkit rig calibrate``: 0 when the profile is written."""
+    from rigkit.core.files import write_text
+    from rigkit.errors import InputError
+    from rigkit.reporting.scale import LASER_ACCURACY_M, format_calibration, sessions_targets
+    from rigkit.rig.calibration import calibrated_profile, fit_scale
+    from rigkit.rig.profile import dump_rig
+
+    if args.out.exists() and not args.force:
+        raise InputError(f"{args.out}: exists; give --force to overwrite it")
+    accuracy = args.laser_sigma_m or LASER_ACCURACY_M
+    profile, targets = sessions_targets(args.sessions, accuracy)
+    fit = fit_scale(targets, profile)
+    print(format_calibration(fit, profile, len(args.sessions)), end="")
+    note = (f"Calibrated by rigkit rig calibrate from {len(fit.used)} laser target(s) in "
+            f"{', '.join(str(s) for s in args.sessions)}: C_lb "
+            f"{profile.baseline_lb.value_m:.4f} -> {profile.baseline_lb.value_m * fit.scale:.4f}"
+            f" m" + ("" if fit.checked else " (unchecked: fewer than 3 targets)") + ".")
+    write_text(args.out, dump_rig(calibrated_profile(profile, fit, note)))
+    print(f"wrote {args.out}; use it: rigkit session set-rig SESSION --rig {args.out}, "
+          "then rigkit process SESSION")
+    return 0
 
 
 def _positive_float(text: str) -> float:

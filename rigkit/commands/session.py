@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from rigkit.commands import count
-from rigkit.commands.session_position import register_set_position
+from rigkit.commands.session_position import register_set_position, register_set_rig
 
 EXAMPLE = """examples:
   rigkit session new capture/ridge-0412 --rig rigs/p1000-tripod.yaml --operator "A. Field"
@@ -106,6 +106,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     show.add_argument("--json", action="store_true", help="machine-readable output")
     show.set_defaults(func=run_show)
     register_set_position(actions)
+    register_set_rig(actions)
 
 
 def run_new(args: argparse.Namespace) -> int:

@@ -1,4 +1,5 @@
-"""``rigkit session set-position``: where the tripod stood, typed in or from a GPS."""
+"""``rigkit session set-position`` and ``set-rig``: where the tripod stood (typed in or
+from a GPS), and the rig profile the session is processed with."""
 
 from __future__ import annotations
 
@@ -35,6 +36,36 @@ def register_set_position(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--timeout", type=float, default=30.0,
                    help="seconds to wait for each GPS fix (default 30)")
     p.set_defaults(func=run_set_position)
+
+
+SET_RIG_EXAMPLE = """example:
+  rigkit rig calibrate capture/ridge-0412 --out rigs/ridge-0412.yaml
+  rigkit session set-rig capture/ridge-0412 --rig rigs/ridge-0412.yaml
+  rigkit process capture/ridge-0412
+
+The session keeps a copy of the profile's values, as `session new` does; history.log
+names the profile it replaced. Process the session again for results under it.
+"""
+
+
+def register_set_rig(actions: argparse._SubParsersAction) -> None:
+    p = actions.add_parser(
+        "set-rig", help="process the session with another rig profile (e.g. a calibrated one)",
+        epilog=SET_RIG_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("session", type=Path)
+    p.add_argument("--rig", type=Path, required=True, help="rig profile YAML (copied in)")
+    p.set_defaults(func=run_set_rig)
+
+
+def run_set_rig(args: argparse.Namespace) -> int:
+    from rigkit.capture.positioning import set_rig
+
+    session = set_rig(args.session, args.rig)
+    lb = session.rig().baseline_lb
+    print(f"{session.path}: rig {session.rig().name} (C_lb {lb.value_m:.4f} +- "
+          f"{lb.tolerance_m:.4f} m); process it again for results under it: "
+          f"rigkit process {session.path}")
+    return 0
 
 
 def run_set_position(args: argparse.Namespace) -> int:

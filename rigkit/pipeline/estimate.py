@@ -164,6 +164,7 @@ class DepthResult:
             "depth_range_m": [float(np.nanmin(self.depth)), float(np.nanmax(self.depth))]
             if valid.any()
             else None,
+            "median_depth_m": self.median_depth_m if np.isfinite(self.median_depth_m) else None,
             "timings_s": self.timings_s,
         }
 

@@ -45,12 +45,14 @@ class TargetVerdict:
 class Verdict:
     """The session's verdict: ``ok`` when every target is within the goal and no
     shortfall is reported; ``headline`` is one line ("6/6 targets within 1 %: done"),
-    ``advice`` what to capture again (may be empty)."""
+    ``advice`` what to capture again (may be empty); ``scale`` what the targets say of
+    the rig's scale (:func:`rigkit.reporting.scale.run_scale_note`; "" where unknown)."""
 
     ok: bool
     headline: str
     targets: tuple[TargetVerdict, ...]
     advice: tuple[str, ...]
+    scale: str = ""
 
 
 def row_label(row: Comparison, goal_pct: float = GOAL_PCT) -> str:
@@ -87,10 +89,11 @@ def judge_target(row: Comparison, profile: RigProfile, goal_pct: float = GOAL_PC
 
 
 def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOAL_PCT,
-          frames: int = 1, shortfalls: Sequence[str] = ()) -> Verdict:
+          frames: int = 1, shortfalls: Sequence[str] = (), scale: str = "") -> Verdict:
     """The verdict on one run's comparison rows (one per target), captured with
     ``frames`` per position; ``shortfalls``: what the run said makes it miss the goal
-    (:attr:`rigkit.batch.depthrun.DepthRun.shortfalls`)."""
+    (:attr:`rigkit.batch.depthrun.DepthRun.shortfalls`); ``scale``: what the targets
+    say of the rig's scale, shown with it."""
     if not rows:
         return Verdict(False, "no laser targets: nothing to check the depth against", (),
                        ("mark at least one target and fire the laser at it",))
@@ -101,7 +104,7 @@ def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOA
     if passed == len(targets) and shortfalls:
         verdict = "capture again: the run says it misses the goal (below)"
     headline = f"{passed}/{len(targets)} targets within {goal_pct:g} %: {verdict}"
-    return Verdict(done, headline, targets, _advice(rows, targets))
+    return Verdict(done, headline, targets, _advice(rows, targets), scale)
 
 
 def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tuple[str, ...]:

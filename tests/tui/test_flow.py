@@ -177,6 +177,9 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
         verdict = text(app, "#verdict")
         assert "0/1 targets within" in verdict and "capture again" in verdict
         assert re.search(r"T1: 2\d\.\d\d %: outside 1 %, outside the 2σ", verdict)
+        # What one laser says of the scale, shown with the verdict and marked unchecked.
+        assert re.search(r"scale: lasers say C_lb = 1\.\d{3} \+- .* re-tape C_lb, or "
+                         r"calibrate .*\(from 1 target\(s\): unchecked\)", verdict, re.S)
         await pilot.press("b", "m", *"200", "enter", "n")  # one more reading: run again
         await wait_for(pilot, lambda: len(runs(session.path)) == 2, "the second run", 60)
         await wait_for(pilot, lambda: "targets within" in text(app, "#verdict"), "the verdict")

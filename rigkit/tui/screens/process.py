@@ -19,6 +19,7 @@ from rigkit.capture import RESULTS_DIR, read_rows
 from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
+from rigkit.reporting.scale import run_reference, run_scale_note
 from rigkit.reporting.verdict import judge, run_shortfalls
 from rigkit.tui.screens.common import escape, session_of
 from rigkit.tui.screens.exporting import ExportingScreen
@@ -105,7 +106,8 @@ class ProcessScreen(ExportingScreen):
         session = session_of(self)
         self.query_one(ProgressBar).update(progress=1.0)
         shortfalls = run_shortfalls(session.path)
-        verdict = judge(rows, session.rig(), frames=session.burst_length, shortfalls=shortfalls)
+        verdict = judge(rows, session.rig(), frames=session.burst_length, shortfalls=shortfalls,
+                        scale=run_scale_note(rows, session.rig(), run_reference(session.path)))
         table = self.query_one(DataTable)
         table.clear()
         for row, target in zip(rows, verdict.targets, strict=True):
@@ -115,6 +117,8 @@ class ProcessScreen(ExportingScreen):
         colour = "$success" if verdict.ok else "$error"
         advice = "".join(f"\n- {escape(a)}" for a in verdict.advice)
         advice += "".join(f"\n[$warning]{escape(note)}[/]" for note in shortfalls)
+        if verdict.scale:
+            advice += f"\n[b]scale:[/] {escape(verdict.scale)}"
         self.query_one("#verdict", Static).update(
             f"[b {colour}]{escape(verdict.headline)}[/]{advice}")
         box = self.query_one("#depth", Vertical)
