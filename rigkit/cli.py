@@ -12,6 +12,7 @@ from collections.abc import Iterator, Sequence
 
 from rigkit import __version__
 from rigkit.core.memory import tune_for_images
+from rigkit.core.signals import Terminated
 from rigkit.errors import RigkitError, environment_message
 
 # Subcommand modules under rigkit.commands, in the order --help lists them.
@@ -44,7 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    try:  # Ctrl-C while the commands' modules load is an interruption like any other
+        parser = build_parser()
+    except KeyboardInterrupt as exc:
+        return _interrupted("rigkit", exc)
     args = parser.parse_args(argv)
     tune_for_images()  # freed image-sized arrays reused, no huge-page stalls: ~1.4 s of a triple
     try:
@@ -53,9 +57,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RigkitError as exc:
         print(f"rigkit {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"rigkit {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return _interrupted(f"rigkit {args.command}", exc)
     except BrokenPipeError:
         # Output piped into a reader that stopped (e.g. `| head`): not an error.
         sys.stderr.close()
@@ -64,6 +67,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
         return 2
     return code
+
+
+def _interrupted(who: str, exc: KeyboardInterrupt) -> int:
+    """One line, and the shell's status for Ctrl-C (130) or SIGTERM (143)."""
+    terminated = isinstance(exc, Terminated)
+    print(f"{who}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+    return 143 if terminated else 130
 
 
 @contextlib.contextmanager

@@ -12,6 +12,7 @@ Needs the ``cluster`` extra (``pip install 'rigkit[cluster]'``: ``dask[distribut
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -43,6 +44,7 @@ def connect(scheduler: str) -> Any:
     (one line) when it cannot be reached within :data:`CONNECT_TIMEOUT_S` or no worker
     joins it within :data:`WORKER_WAIT_S`."""
     distributed = _distributed()
+    _check_scheduler(scheduler)
     try:
         client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
     except (OSError, ValueError, TimeoutError) as exc:
@@ -55,6 +57,36 @@ def connect(scheduler: str) -> Any:
         raise InputError(f"--scheduler {scheduler}: no worker joined within "
                          f"{WORKER_WAIT_S:g} s (start one: dask worker {scheduler})") from None
     return client
+
+
+def _check_scheduler(scheduler: str) -> None:
+    """InputError (one line) unless a Dask scheduler answers at ``scheduler`` within
+    :data:`CONNECT_TIMEOUT_S`: a port that accepts and stays silent, or answers with
+    other bytes, is refused here, before a Client could wait on it or parse its bytes."""
+    try:
+        answer = asyncio.run(asyncio.wait_for(_identity(scheduler), CONNECT_TIMEOUT_S + 1))
+    except TimeoutError:
+        raise InputError(f"--scheduler {scheduler}: no Dask scheduler answered within "
+                         f"{CONNECT_TIMEOUT_S:g} s; is `dask scheduler` running there?"
+                         ) from None
+    except Exception as exc:  # refused, unreachable, or bytes that are no Dask message
+        raise InputError(f"--scheduler {scheduler}: cannot reach the scheduler "
+                         f"({type(exc).__name__}: {exc}); is `dask scheduler` running there?"
+                         ) from None
+    if not isinstance(answer, dict) or answer.get("type") != "Scheduler":
+        raise InputError(f"--scheduler {scheduler}: answers, but is not a Dask scheduler")
+
+
+async def _identity(scheduler: str) -> Any:
+    """What the service at ``scheduler`` says it is (Dask's ``identity`` request)."""
+    from distributed.comm import connect as open_comm
+
+    comm = await open_comm(scheduler, timeout=CONNECT_TIMEOUT_S)
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        return await comm.read()
+    finally:
+        comm.abort()
 
 
 def run_on_cluster(
@@ -102,7 +134,11 @@ def _process_task(path: Path, run_id: str, force: bool, sharing: dict[str, int])
     worker = _distributed().get_worker()
     tasks = sharing.get(worker.ip) or worker.state.nthreads
     limit_threads(max(1, available_cores() // max(1, tasks)))
-    return safe_process(path, run_id, force)
+    outcome = safe_process(path, run_id, force)
+    if outcome.ok:
+        return outcome
+    return replace(outcome, message=f"{outcome.message} (on worker {worker.address}, "
+                                    "with the path as that worker sees it)")
 
 
 def _result(future: Any, path: Path, run_id: str) -> Outcome:

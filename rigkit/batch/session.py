@@ -35,6 +35,7 @@ from rigkit.capture.session import (
     utc_now,
 )
 from rigkit.core.files import Content, check_free_space, replace_folder
+from rigkit.core.safefs import read_regular
 from rigkit.errors import InputError
 from rigkit.reporting.previews import preview_set
 from rigkit.reporting.scale import RunReference, run_scale_note
@@ -98,6 +99,10 @@ def process_session(
 def _process_locked(
     session: Session, run_id: str, force: bool, report: StageReport, t0: float
 ) -> Outcome:
+    if _run_of_results(session.path) == run_id:  # a task run again (a Dask worker lost)
+        log_event(session.path, "process", f"run {run_id}: already done; left as it is")
+        return Outcome(session.path, True, f"already processed in run {run_id}",
+                       time.perf_counter() - t0)
     problems = frame_problems(session)
     if problems:
         raise InputError(f"{session.path}: " + "; ".join(problems))
@@ -142,6 +147,18 @@ def _process_locked(
         session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
         seconds, rows, (*run.warnings, *_stray_warnings(session)), verdict,
     )
+
+
+def _run_of_results(path: Path) -> str | None:
+    """The run id of the session's results (None: none, or unreadable). Results and
+    their rows are written under the lock, whole, once per run: a run id found here
+    means this run's work is done (exactly once, whatever a cluster retries)."""
+    try:
+        meta = json.loads(read_regular(path / RESULTS_DIR / "depth.json"))
+    except (OSError, ValueError, InputError):
+        return None
+    run = meta.get("run_id") if isinstance(meta, dict) else None
+    return run if isinstance(run, str) else None
 
 
 def _stray_warnings(session: Session) -> list[str]:

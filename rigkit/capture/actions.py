@@ -21,7 +21,8 @@ from typing import Any
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.exif import ExifInfo, read_exif
 from rigkit.capture.frames import FrameFile, capture_problems
-from rigkit.capture.rawio import load_linear_grey
+from rigkit.capture.imagesize import check_before_copy
+from rigkit.capture.rawio import is_raw, load_linear_grey
 from rigkit.capture.session import (
     DEFAULT_WINDOW_PX,
     DERIVED_DIR,
@@ -44,6 +45,7 @@ from rigkit.capture.session import (
     utc_now,
 )
 from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
+from rigkit.core.safefs import read_regular, real_folder
 from rigkit.errors import InputError
 from rigkit.rangefinder.ranging import max_range_m
 from rigkit.rig.profile import load_rig, rig_to_dict
@@ -129,11 +131,15 @@ def add_frame(
     source = Path(source)
     if not source.is_file():
         raise InputError(f"{source}: no such file")
+    rig = session.rig()
+    check_before_copy(source, rig.image_size, f"the rig profile {rig.name} is for",
+                      raw=is_raw(source))
     with changing(session.path, "add-frame") as current:
         with _staged(current.path, source) as (staged, sha256):
             frame = _checked_frame(current, position, source, staged, sha256,
                                    replace_existing, burst, origin)
-            stored = _store(current.path / RAW_DIR, staged, source.name, position, sha256)
+            stored = _store(current.path / RAW_DIR, staged, _text_name(source.name),
+                            position, sha256)
         frame = replace(frame, file=f"{RAW_DIR}/{stored.name}")
         before = () if replace_existing else current.bursts.get(position, ())
         updated = replace(current, bursts={**current.bursts, position: (*before, frame)})
@@ -141,6 +147,12 @@ def add_frame(
         log_event(current.path, "add-frame",
                   f"{position} {frame.file} sha256={frame.sha256} from {frame.source}")
     return updated
+
+
+def _text_name(name: str) -> str:
+    """``name`` as text that every file and log takes: bytes of a file name that are not
+    UTF-8 (which Python keeps as lone surrogates) become ``_``."""
+    return os.fsencode(name).decode("utf-8", "replace").replace("\ufffd", "_")
 
 
 def _checked_frame(session: Session, position: str, source: Path, staged: Path,
@@ -174,7 +186,7 @@ def _checked_frame(session: Session, position: str, source: Path, staged: Path,
         sha256=sha256,
         size_px=size,
         added_utc=utc_now(),
-        source=origin or str(source.resolve()),
+        source=origin or _text_name(str(source.resolve())),
         exif=exif_fields(read_exif(staged)),
     )
 @contextmanager
@@ -215,7 +227,7 @@ def stale_results(session: Session) -> str | None:
     if not meta_path.is_file():
         return None
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        meta = json.loads(read_regular(meta_path).decode("utf-8"))
         recorded = {pos: [f.get("sha256") for f in meta["frames"][pos]] for pos in POSITIONS}
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return "results/depth.json is unreadable; process again"
@@ -247,10 +259,13 @@ def clean_staging(session_path: Path) -> None:
     """Remove what an interrupted ``add-frame`` left: staged copies, and the partial
     copies (``raw/.ingest.*.tmp``) that rigkit made inside ``raw/`` before it staged
     outside it. Called under the session's lock, when no copy can be under way."""
-    for leftover in [*(session_path / STAGING_DIR).glob("*"),
-                     *(session_path / RAW_DIR).glob(".ingest.*.tmp")]:
-        if leftover.is_file() and not leftover.is_symlink():
-            leftover.unlink(missing_ok=True)
+    folders = [session_path / STAGING_DIR, session_path / RAW_DIR]
+    for folder, pattern in zip(folders, ("*", ".ingest.*.tmp"), strict=True):
+        if not os.path.lexists(folder):
+            continue
+        for leftover in real_folder(folder).glob(pattern):  # never a link to raw/ or away
+            if leftover.is_file() and not leftover.is_symlink():
+                leftover.unlink(missing_ok=True)
 
 
 @contextmanager
@@ -260,8 +275,7 @@ def _staged(session_path: Path, source: Path) -> Iterator[tuple[Path, str]]:
     whatever happens (a frame that is kept has been linked into ``raw/`` by then)."""
     folder = session_path / STAGING_DIR
     try:
-        folder.mkdir(exist_ok=True)
-        fd, tmp = temp_file(folder, "frame")
+        fd, tmp = temp_file(real_folder(folder, create=True), "frame")
     except OSError as exc:
         raise InputError(f"{session_path}: cannot write to the session ({exc.strerror})"
                          ) from None
@@ -285,7 +299,7 @@ def _store(raw_dir: Path, staged: Path, name: str, position: str, wanted: str) -
     """Link the accepted ``staged`` file (SHA-256 ``wanted``) into ``raw_dir`` without
     overwriting anything: under its original ``name``, or prefixed with the position
     when a different file already has that name. Returns the stored path."""
-    raw_dir.mkdir(parents=True, exist_ok=True)
+    real_folder(raw_dir, create=True)  # a link to a folder elsewhere is refused
     for candidate in (name, f"{position}-{name}"):
         target = raw_dir / candidate
         if target.exists():

@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 from rigkit.core.files import append_whole
+from rigkit.core.safefs import read_regular
 from rigkit.errors import InputError
 
 LOG_NAME = "comparisons.csv"
@@ -113,7 +114,7 @@ def read_rows(path: Path, torn: list[str] | None = None) -> list[Comparison]:
     before append_whole) is skipped, and said in ``torn`` ("line 7: ...") when a list is
     given, so one damaged row does not make the whole history unreadable."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_regular(path).decode("utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: no comparisons log (run `rigkit process` first)") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -32,7 +33,10 @@ from rigkit.capture.picture import picture_problem
 from rigkit.core.chatter import captured_stderr
 from rigkit.core.files import write_png
 from rigkit.errors import InputError
-from rigkit.pipeline.images import check_decoder_output, load_grey
+from rigkit.pipeline.images import check_decoder_output, decode_grey, read_image_file
+
+if TYPE_CHECKING:
+    import rawpy
 
 # File name suffixes (lower case) of the camera RAW formats LibRaw decodes.
 RAW_SUFFIXES: frozenset[str] = frozenset(
@@ -142,7 +146,7 @@ def decode_raw(path: str | Path, expected: tuple[int, int] | None = None,
     _require_file(path)
     _check_raw_container(path)
     try:
-        with captured_stderr() as chatter, rawpy.imread(str(path)) as raw:
+        with captured_stderr() as chatter, _open_raw(path) as raw:
             _check_holds_image(path, raw.sizes.raw_width * raw.sizes.raw_height)
             check_size(path, (raw.sizes.width, raw.sizes.height), expected, whose)
             rgb = raw.postprocess(
@@ -159,6 +163,16 @@ def decode_raw(path: str | Path, expected: tuple[int, int] | None = None,
         raise InputError(f"{path}: {_libraw_reason(exc)}") from None
     check_decoder_output(path, chatter.text)
     return np.asarray(rgb, dtype=np.uint16)
+
+
+def _open_raw(path: Path) -> rawpy.RawPy:
+    """LibRaw opened on the bytes of the RAW file at ``path``, read with Python's own I/O:
+    rawpy would hand a path to C as UTF-8, which a name holding the byte 0xff is not.
+    Raises rawpy.LibRawError as rawpy.imread does."""
+    import rawpy
+
+    with path.open("rb") as handle:
+        return rawpy.imread(handle)
 
 
 def _check_raw_container(path: Path) -> None:
@@ -233,7 +247,8 @@ def load_linear_grey(
     picture_problem`); only such a frame is cached, so a cached one has passed. Its
     size must be ``expected`` (W, H) where given (``whose`` says whose size that is), and
     within the largest frame rigkit decodes: checked on the file's header before it is
-    decoded, and on what was decoded (:func:`rigkit.capture.imagesize.check_size`).
+    decoded, and on what was decoded (:func:`rigkit.capture.imagesize.check_size`). An
+    ordinary image whose header cannot be read is refused, not decoded.
 
     Raises InputError naming the file when it is missing, cannot be decoded, holds no
     picture or has the wrong size, or naming the cache file when it cannot be written.
@@ -242,8 +257,7 @@ def load_linear_grey(
     if is_raw(path):
         grey = _raw_grey(path, cache_dir, sha256, expected, whose)
     else:
-        check_size(path, header_size(path), expected, whose)
-        grey = _with_picture(path, _read_plain_grey(path))
+        grey = _with_picture(path, _read_plain_grey(path, expected, whose))
     check_size(path, (grey.shape[1], grey.shape[0]), expected, whose)
     return grey
 
@@ -274,7 +288,8 @@ def _with_picture(path: Path, grey: np.ndarray) -> np.ndarray:
 def frame_size(path: str | Path) -> tuple[int, int]:
     """(width, height) px of the image :func:`load_linear_grey` decodes from ``path``:
     LibRaw's output size for a RAW file (read from its header, the pixels are not
-    decoded), the decoded size of an ordinary image. InputError as for decoding."""
+    decoded), the decoded size of an ordinary image (whose header is checked first, as
+    :func:`load_linear_grey` does). InputError as for decoding."""
     import rawpy
 
     path = Path(path)
@@ -284,7 +299,7 @@ def frame_size(path: str | Path) -> tuple[int, int]:
     _require_file(path)
     _check_raw_container(path)
     try:
-        with captured_stderr(), rawpy.imread(str(path)) as raw:
+        with captured_stderr(), _open_raw(path) as raw:
             return int(raw.sizes.width), int(raw.sizes.height)
     except rawpy.LibRawError as exc:
         raise InputError(f"{path}: {_libraw_reason(exc)}") from None
@@ -357,11 +372,19 @@ def _libraw_reason(exc: Exception) -> str:
     return f"LibRaw cannot decode the file ({type(exc).__name__}: {detail})"
 
 
-def _read_plain_grey(path: Path) -> np.ndarray:
-    """PNG/TIFF/JPEG -> (H, W) float32 in [0, 1] (not linearised, orientation ignored)."""
-    # load_grey gives [0, 255] for both depths (16-bit divided by 257): scaled in place,
+def _read_plain_grey(path: Path, expected: tuple[int, int] | None = None,
+                     whose: str = "the rig is for") -> np.ndarray:
+    """PNG/TIFF/JPEG -> (H, W) float32 in [0, 1] (not linearised, orientation ignored).
+
+    The file is read once; the size its header declares is checked on those bytes
+    before they are decoded (:func:`rigkit.capture.imagesize.check_size`: the largest
+    frame, and ``expected`` (W, H) where given). InputError naming the file when the
+    header cannot be read (the file is then not decoded), or as for decoding."""
+    data = read_image_file(path)
+    check_size(path, header_size(path, data), expected, whose)
+    # decode_grey gives [0, 255] for both depths (16-bit divided by 257): scaled in place,
     # since each fresh 16 MP array costs time (0.6 s over a 15-frame burst).
-    grey = load_grey(path)
+    grey = decode_grey(path, data)
     grey *= np.float32(1.0 / 255.0)
     return grey
 
@@ -375,10 +398,17 @@ def _cache_path(cache_dir: Path | None, sha256: str | None) -> Path | None:
 
 
 def _read_cache(cache: Path) -> np.ndarray | None:
-    """The cached (H, W) uint16 grey image, or None when absent or not a valid cache."""
+    """The cached (H, W) uint16 grey image, or None when absent or not a valid cache:
+    one whose header cannot be read or declares more than the largest frame is not
+    decoded."""
     if not cache.is_file():
         return None
-    img = cv2.imread(str(cache), cv2.IMREAD_UNCHANGED)
+    data = cache.read_bytes()
+    try:
+        check_size(cache, header_size(cache, data), None)
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    except (InputError, cv2.error):
+        img = None
     if img is None or img.ndim != 2 or img.dtype != np.uint16:
         return None  # damaged or foreign: decode again and overwrite it
     return img

@@ -42,8 +42,11 @@ from rigkit.capture.tripod import (
     tripod_to_data,
 )
 from rigkit.core.files import append_whole, write_text
+from rigkit.core.safefs import open_regular, refusal
 from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
+from rigkit.rangefinder.framing import MIN_RANGE_M
+from rigkit.rangefinder.ranging import max_range_m
 from rigkit.rig.profile import RigProfile, rig_from_data
 
 SESSION_FILE = "session.yaml"
@@ -58,6 +61,8 @@ LOCK_FILE = ".lock"
 EDIT_WAIT_S = 20.0
 """How long a change to a session waits for another one to finish before it gives up."""
 DEFAULT_WINDOW_PX = 9
+MAX_SIDE_PX = 100_000
+"""The largest frame side a session may record, px (a rig profile's limit too)."""
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
 
@@ -210,11 +215,15 @@ def is_session(path: Path) -> bool:
 
 
 def load_session(path: str | Path) -> Session:
-    """Read and validate ``session.yaml``; InputError names the file and key."""
+    """Read and validate ``session.yaml``; InputError names the file and key. A
+    ``session.yaml`` that is a link is refused unread (it could show another file's
+    lines in an error), as is a ``name`` that is no plain name."""
     path = Path(path)
     if not path.is_dir():
         raise InputError(f"{path}: no such session folder")
     yaml_path = path / SESSION_FILE
+    if yaml_path.is_symlink():
+        raise refusal(yaml_path, "a symbolic link")
     if not yaml_path.is_file():
         raise InputError(f"{path}: not a session folder (no {SESSION_FILE})")
     data = read_strict_yaml(yaml_path, "session file")
@@ -237,11 +246,12 @@ def session_lock(path: Path, action: str, wait_s: float = EDIT_WAIT_S) -> Iterat
     being processed by PID 4242 since ..."). The lock is an ``flock`` on ``.lock``,
     which the operating system releases when its holder dies: a crash leaves nothing to
     clean up."""
-    try:
-        handle = open(path / LOCK_FILE, "a+")  # closed (and so released) below
+    try:  # closed (and so released) below; never a link, a FIFO or a device
+        fd = open_regular(path / LOCK_FILE, os.O_RDWR | os.O_APPEND | os.O_CREAT)
     except OSError as exc:
-        raise InputError(f"{path}: cannot write to the session ({exc.strerror})") from None
-    with handle:
+        raise InputError(f"{path / LOCK_FILE}: cannot write to the session's lock "
+                         f"({exc.strerror or exc})") from None
+    with os.fdopen(fd, "a+") as handle:
         deadline = time.monotonic() + wait_s
         while True:
             try:
@@ -266,10 +276,10 @@ def lock_holder(path: Path) -> str | None:
     """Who holds the session folder ``path``'s lock ("being processed by PID 4242 since
     ..."), or None when nobody does. Takes nothing: the lock is tried and let go."""
     try:
-        handle = open(path / LOCK_FILE)
+        fd = open_regular(path / LOCK_FILE, os.O_RDONLY)
     except OSError:
         return None
-    with handle:
+    with os.fdopen(fd) as handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -321,7 +331,7 @@ def _session_from_data(data: Any, path: Path) -> Session:
         raise targets_key.error("two targets share a name")
     session = Session(
         path=path,
-        name=_text(top["name"], top_key.child("name")),
+        name=_plain_name(top["name"], top_key.child("name")),
         created_utc=_text(top["created_utc"], top_key.child("created_utc")),
         rig_reference=_text(rig["reference"], rig_key.child("reference")),
         rig_sha256=_text(rig["sha256"], rig_key.child("sha256")),
@@ -332,8 +342,20 @@ def _session_from_data(data: Any, path: Path) -> Session:
         notes=_text(top.get("notes"), top_key.child("notes")),
         tripod=top_key.optional(top, TRIPOD_KEY, tripod_from_data),
     )
-    session.rig()  # validate the copied profile now, naming rig.values.<key>
+    _check_ranges(targets, max_range_m(session.rig()), targets_key)  # validates the rig
     return session
+
+
+def _check_ranges(targets: tuple[Target, ...], longest_m: float, key: KeyPath) -> None:
+    """Every reading a range the rig's rangefinder can give, as typed input must be
+    (:data:`MIN_RANGE_M` to ``longest_m``): a 3e-304 m edited into the file would
+    otherwise reach every summary."""
+    for i, target in enumerate(targets):
+        for j, reading in enumerate(target.readings):
+            if not MIN_RANGE_M <= reading.slope_distance_m <= longest_m:
+                where = key.item(i).child("readings").item(j).child("slope_distance_m")
+                raise where.error(f"must be a range the rangefinder gives, {MIN_RANGE_M:g}-"
+                                  f"{longest_m:g} m", reading.slope_distance_m)
 
 
 def _text(value: Any, key: KeyPath) -> str:
@@ -360,7 +382,9 @@ def _frame(value: Any, key: KeyPath, position: str) -> Frame:
         value, required=("file", "sha256", "size_px", "added_utc", "source"),
         optional=("exif",),
     )
-    width, height = _numbers(keys["size_px"], key.child("size_px"), "pixels")
+    size_key = key.child("size_px")
+    width, height = (size_key.integer(v, "pixels", MAX_SIDE_PX)
+                     for v in size_key.pair(keys["size_px"], "width, height"))
     exif = keys.get("exif") or {}
     if not isinstance(exif, dict):
         raise key.child("exif").error("must be a mapping of keys to values", exif)
@@ -371,7 +395,7 @@ def _frame(value: Any, key: KeyPath, position: str) -> Frame:
         position=position,
         file=file,
         sha256=_text(keys["sha256"], key.child("sha256")),
-        size_px=(int(width), int(height)),
+        size_px=(width, height),
         added_utc=_text(keys["added_utc"], key.child("added_utc")),
         source=_text(keys["source"], key.child("source")),
         exif=exif,
@@ -483,6 +507,16 @@ def _reading_to_data(reading: LaserReading) -> dict[str, Any]:
     if reading.raw is not None:
         data["raw"] = reading.raw
     return data
+
+
+def _plain_name(value: Any, key: KeyPath) -> str:
+    """A name that may become a file name (``rigkit export`` names its files with the
+    session's): the rule of ``session new``, so ``../x`` or ``/x`` is refused on load."""
+    name = _text(value, key)
+    if not _NAME.match(name):
+        raise key.error("not a usable name (letters, digits, '.', '_', '-'; starting with a "
+                        "letter or digit)", name)
+    return name
 
 
 def check_name(name: str, where: str) -> None:

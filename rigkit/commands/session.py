@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -263,7 +264,8 @@ def run_show(args: argparse.Namespace) -> int:
     try:  # repair what an interrupted command left, where the session can be changed
         with changing(args.session, "show", wait_s=0.0) as session:
             pass
-    except InputError:  # busy, or read-only: show it as it is
+    except InputError as exc:  # busy, read-only or hostile: say why, show it as it is
+        print(f"warning: not repaired: {exc}", file=sys.stderr)
         session = load_session(args.session)
     if args.json:
         print(json.dumps(_show_data(session), indent=2))

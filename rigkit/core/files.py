@@ -31,6 +31,7 @@ from typing import BinaryIO
 
 import numpy as np
 
+from rigkit.core.safefs import open_regular
 from rigkit.errors import InputError
 
 #: What :func:`write_file` writes: text (UTF-8), bytes, or an array (``.png``: BGR or
@@ -62,10 +63,10 @@ def append_whole(path: Path, text: str) -> None:
     A file that does not end with a newline (a torn line from a crash mid-write) gets
     one first, leaving that fragment a line of its own. OSError if the write fails."""
     data = text.encode("utf-8")
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    fd = open_regular(path, os.O_RDWR | os.O_APPEND | os.O_CREAT)  # never a link or a FIFO
     try:
         size = os.fstat(fd).st_size
-        if size and _last_byte(path) != b"\n":
+        if size and os.pread(fd, 1, size - 1) != b"\n":
             data = b"\n" + data
         try:
             written = 0
@@ -78,12 +79,6 @@ def append_whole(path: Path, text: str) -> None:
             raise
     finally:
         os.close(fd)
-
-
-def _last_byte(path: Path) -> bytes:
-    with Path(path).open("rb") as handle:
-        handle.seek(-1, os.SEEK_END)
-        return handle.read(1)
 
 
 def check_writable_folder(folder: Path, what: str) -> None:
@@ -228,7 +223,8 @@ def staged_files(folder: Path) -> Iterator[Path]:
     ``folder``, replacing any of the same name. If the block raises, the temporary
     folder and everything in it is removed and ``folder`` is left as it was."""
     folder = Path(folder)
-    with tempfile.TemporaryDirectory(dir=folder, prefix=".rigkit-") as tmp:
+    _remove_stale_staging(folder)
+    with tempfile.TemporaryDirectory(dir=folder, prefix=f"{STAGING_PREFIX}{os.getpid()}-") as tmp:
         yield Path(tmp)
         staged = sorted(Path(tmp).iterdir())
         for path in staged:
@@ -236,6 +232,31 @@ def staged_files(folder: Path) -> Iterator[Path]:
         for path in staged:
             os.replace(path, folder / path.name)
     fsync_folder(folder)
+
+
+STAGING_PREFIX = ".rigkit-"
+"""Staging folders of :func:`staged_files` are named ``.rigkit-<pid>-<random>``."""
+
+
+def _remove_stale_staging(folder: Path) -> None:
+    """Remove staging folders that :func:`staged_files` left in ``folder`` in a process
+    that no longer runs (killed before it could clean up); another live process's are
+    left alone."""
+    for stale in folder.glob(f"{STAGING_PREFIX}*-*"):
+        pid = stale.name[len(STAGING_PREFIX):].split("-", 1)[0]
+        if not pid.isdigit() or _alive(int(pid)) or stale.is_symlink() or not stale.is_dir():
+            continue
+        shutil.rmtree(stale, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's: alive
+        return True
+    return True
 
 
 def _fsync_file(path: Path) -> None:

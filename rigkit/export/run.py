@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from rigkit.core.files import check_writable_folder, staged_files
+from rigkit.core.signals import terminate_as_interrupt
 from rigkit.errors import InputError
 from rigkit.export.georef import MAX_RESIDUAL_DEG, Georeference, georeference
 from rigkit.export.las import LasWriter, las_header
@@ -92,7 +93,7 @@ def export_depth(source: DepthMap, out: Path, formats: Sequence[str], *, step: i
         raise InputError(f"{source.name}: the depth map has no estimated pixel to export")
     names = [f"{source.name}.{fmt}" for fmt in formats]
     try:
-        with staged_files(out) as staging:
+        with terminate_as_interrupt(), staged_files(out) as staging:  # SIGTERM cleans up
             clouds = [fmt for fmt in formats if fmt != "tif"]
             if clouds:
                 _write_clouds(source, staging, clouds, count, step, georef, report)

@@ -125,7 +125,8 @@ def _maps(depth_path: Path, sigma_path: Path, grey_path: Path,
     if not grey_path.is_file():
         raise InputError(f"{grey_path}: missing (written since rigkit records the grey "
                          f"values for export); run `{remake}` again")
-    grey = cv2.imread(str(grey_path), cv2.IMREAD_GRAYSCALE)
+    data = np.fromfile(grey_path, np.uint8)  # read by Python: no file name reaches OpenCV
+    grey = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
     if grey is None:
         raise InputError(f"{grey_path}: cannot read the image")
     if depth.ndim != 2 or sigma.shape != depth.shape or grey.shape != depth.shape:

@@ -11,32 +11,86 @@ import numpy as np
 from rigkit.core.chatter import captured_stderr
 from rigkit.errors import InputError
 
-_CUT_SHORT = re.compile(r"premature end|unexpected end|data corrupted|read error", re.IGNORECASE)
+_CUT_SHORT = re.compile(r"premature end|unexpected end|data corrupted|read error|"
+                        r"input buffer is incomplete", re.IGNORECASE)
 """What libjpeg ("Premature end of JPEG file"), LibRaw ("Unexpected end of file", "data
-corrupted at 1378") and libtiff ("Read error on strip") print when a file ends early or
-its data is damaged: the decoders fill in what is missing (grey rows, a grey block) and
-carry on. libjpeg's "extraneous bytes before marker" is harmless and not matched."""
+corrupted at 1378"), libtiff ("Read error on strip") and libpng reading from memory
+("PNG input buffer is incomplete") print when a file ends early or its data is damaged:
+the decoders fill in what is missing (grey rows, a grey block) and carry on, or give
+up. libjpeg's "extraneous bytes before marker" is harmless and not matched."""
+
+_FLAGS = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
+"""OpenCV decodes any depth and colour as stored, the EXIF Orientation not applied."""
+
+_JPEG_EOI = b"\xff\xd9"
+"""The JPEG end-of-image marker."""
 
 
 def load_grey(path: str | Path) -> np.ndarray:
     """Read an image as (H, W) float32 grey in [0, 255] (16-bit input is scaled down),
     on the pixel grid the file stores (an EXIF Orientation tag is not applied).
 
-    Raises InputError naming the file when it is missing, not an image, or cut short
-    (its decoder complained and filled in the rest).
+    Raises InputError naming the file when it is missing, not an image OpenCV decodes,
+    or cut short (its decoder complained and filled in the rest, or gave up).
     """
     path = Path(path)
+    return decode_grey(path, read_image_file(path))
+
+
+def read_image_file(path: Path) -> bytes:
+    """The bytes of the file at ``path``, read with Python's own I/O, so that no file name
+    reaches OpenCV's C++ (a name that is not UTF-8, such as one holding the byte 0xff,
+    crashes its imread). InputError naming the file when it is missing or not a file."""
     if not path.is_file():
         raise InputError(f"{path}: no such file")
-    flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
-    with captured_stderr() as chatter:
-        img = cv2.imread(str(path), flags)
-    check_decoder_output(path, chatter.text)
-    if img is None:
-        raise InputError(f"{path}: not a readable image (RAW, PNG, TIFF or JPEG expected)")
+    return path.read_bytes()
+
+
+def decode_grey(path: Path, data: bytes) -> np.ndarray:
+    """``data``, the bytes of the image file ``path``, decoded by OpenCV as
+    :func:`load_grey` does; ``path`` only names the file in errors.
+
+    Refused with InputError naming the file: what OpenCV cannot decode or will not (an
+    image beyond the size its decoders accept, a width or height over 2^20 px), a file
+    cut short or damaged, samples other than 8- or 16-bit integers.
+    """
+    img = _decode(path, data)
     if img.dtype not in (np.uint8, np.uint16):
         raise InputError(f"{path}: {img.dtype} samples (8- or 16-bit integer expected)")
     return to_grey(img, str(path))
+
+
+def _decode(path: Path, data: bytes) -> np.ndarray:
+    """OpenCV's image of ``data`` as stored; InputError naming ``path`` where it has
+    none, refuses the file, or prints that the file is cut short or damaged."""
+    try:
+        with captured_stderr() as chatter:
+            img = cv2.imdecode(np.frombuffer(data, np.uint8), _FLAGS)
+    except cv2.error as exc:
+        raise InputError(f"{path}: not a readable image (OpenCV refuses it: {exc.err})"
+                         ) from None
+    check_decoder_output(path, chatter.text)
+    if img is not None:
+        return img
+    if _jpeg_cut_short(data):
+        raise InputError(f"{path}: the file is cut short or damaged (its JPEG data stops "
+                         "before the image ends: Premature end of JPEG file): copy it from "
+                         "the card again")
+    raise InputError(f"{path}: not a readable image (RAW, PNG, TIFF or JPEG expected)")
+
+
+def _jpeg_cut_short(data: bytes) -> bool:
+    """Whether ``data``, which OpenCV could not decode, is a JPEG cut short. Reading
+    from memory, libjpeg gives up where the data stops; reading a file, it says
+    "Premature end of JPEG file" and ends the image there. So a JPEG that decodes once
+    an end-of-image marker is put after its bytes was cut short."""
+    if not data.startswith(b"\xff\xd8"):
+        return False
+    try:
+        with captured_stderr():
+            return cv2.imdecode(np.frombuffer(data + _JPEG_EOI, np.uint8), _FLAGS) is not None
+    except cv2.error:
+        return False
 
 
 def check_decoder_output(path: Path, printed: str) -> None:

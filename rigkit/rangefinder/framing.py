@@ -137,11 +137,17 @@ def parse_decimal(text: str, what: str) -> float:
     return float(text)
 
 
+MIN_RANGE_M = 0.5
+"""The shortest range taken as a reading, m: below any laser rangefinder's minimum, and
+far below any range rigkit measures; shorter values are typos or corrupt frames."""
+
+
 def check_range(distance_m: float, max_range_m: float, what: str) -> float:
-    """``distance_m`` when it is a range the device can measure (0 < r <= max); a
-    FrameError naming ``what`` otherwise."""
-    if not 0.0 < distance_m <= max_range_m:
-        raise FrameError(f"{what} {distance_m:g} m is beyond the device's 0-{max_range_m:g} m")
+    """``distance_m`` when it is a range the device can measure (MIN_RANGE_M <= r <= max);
+    a FrameError naming ``what`` otherwise."""
+    if not MIN_RANGE_M <= distance_m <= max_range_m:
+        raise FrameError(f"{what} {distance_m:g} m is beyond the device's "
+                         f"{MIN_RANGE_M:g}-{max_range_m:g} m")
     return distance_m
 
 

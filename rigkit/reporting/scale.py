@@ -10,6 +10,7 @@ target of a run, and is what the fit measures.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from collections.abc import Sequence
@@ -20,6 +21,7 @@ import numpy as np
 
 from rigkit.capture import RESULTS_DIR, Session
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
+from rigkit.core.safefs import read_regular
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
 from rigkit.rig.calibration import MIN_CHECKED, LaserTarget, ScaleFit, fit_scale
@@ -49,16 +51,16 @@ def run_reference(session_path: Path) -> RunReference | None:
     """The latest run's reference (None where the session has no readable run)."""
     results = session_path / RESULTS_DIR
     try:
-        meta = json.loads((results / "depth.json").read_text("utf-8"))
-    except (OSError, ValueError):
+        meta = json.loads(read_regular(results / "depth.json"))
+    except (OSError, ValueError, InputError):  # none, damaged, or a link or FIFO
         return None
     if not isinstance(meta, dict):
         return None
     median = meta.get("median_depth_m")
     if not isinstance(median, int | float):  # a run before depth.json recorded it
         try:
-            depth = np.load(results / "depth.npy", mmap_mode="r")
-        except (OSError, ValueError):
+            depth = np.load(io.BytesIO(read_regular(results / "depth.npy")))
+        except (OSError, ValueError, InputError):
             return None
         known = depth[np.isfinite(depth)]
         median = float(np.median(known)) if known.size else math.nan

@@ -20,6 +20,8 @@ from pathlib import Path
 
 from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
+from rigkit.core.safefs import read_regular
+from rigkit.errors import InputError
 from rigkit.rig.budget import ErrorModel, budget_row
 from rigkit.rig.profile import RigProfile
 
@@ -127,8 +129,8 @@ def run_shortfalls(session_path: Path) -> tuple[str, ...]:
     """What the session's latest run said makes it miss the goal (``shortfalls`` in
     ``results/depth.json``); none without a readable run."""
     try:
-        meta = json.loads((session_path / RESULTS_DIR / "depth.json").read_text("utf-8"))
-    except (OSError, ValueError):
+        meta = json.loads(read_regular(session_path / RESULTS_DIR / "depth.json"))
+    except (OSError, ValueError, InputError):  # none, damaged, or a link or FIFO
         return ()
     found = meta.get("shortfalls") if isinstance(meta, dict) else None
     return tuple(str(s) for s in found) if isinstance(found, list) else ()

@@ -116,3 +116,63 @@ def test_a_session_gives_the_same_results_locally_and_on_a_cluster(tmp_path: Pat
                                                            ).read_bytes(), name
     rows = [[replace(r, time_utc="") for r in read_rows(s / LOG_NAME)] for s in (local, remote)]
     assert rows[0] == rows[1] and len(rows[0]) == 4
+
+
+def _fake_service(answer: bytes | None) -> tuple[str, socket.socket]:
+    """A TCP port that accepts and then stays silent (None) or sends ``answer``."""
+    import threading
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+
+    def serve() -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            if answer is not None:
+                conn.sendall(answer)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return f"tcp://127.0.0.1:{server.getsockname()[1]}", server
+
+
+@pytest.mark.parametrize("answer", [None, b"\xff" * 64 + b"HTTP/1.1 200 OK\r\n\r\n" * 8])
+def test_a_port_that_is_no_scheduler_is_one_line_in_time(
+    small_session: Path, answer: bytes | None, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr("rigkit.batch.cluster.CONNECT_TIMEOUT_S", 1.0)
+    address, server = _fake_service(answer)
+    with server:
+        t0 = time.monotonic()
+        assert main(["process", str(small_session), "--scheduler", address]) == 2
+        assert time.monotonic() - t0 < 4
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"--scheduler {address}: " in err
+    assert ("no Dask scheduler answered within 1 s" if answer is None
+            else "cannot reach the scheduler") in err
+
+
+@pytest.mark.slow
+def test_a_session_runs_once_per_run_whatever_the_cluster_retries(
+    small_session: Path, tmp_path: Path
+) -> None:
+    from rigkit.batch.cluster import run_on_cluster
+
+    session = copy_session(small_session, tmp_path)
+    missing = tmp_path / "not-there"
+    run_id = "20260101T000000Z-0001"
+    with (distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                   dashboard_address=None) as cluster,
+          distributed.Client(cluster) as client):
+        first = run_on_cluster([session, missing], client, run_id=run_id)
+        again = run_on_cluster([session], client, run_id=run_id)  # a task run again
+    assert first[0].ok and again[0].ok and "already processed in run" in again[0].message
+    rows = read_rows(session / LOG_NAME)
+    assert len(rows) == 5 and {r.run_id for r in rows} == {run_id}
+    assert not first[1].ok
+    assert "no such session folder (on worker inproc://" in first[1].message
+    assert "with the path as that worker sees it" in first[1].message

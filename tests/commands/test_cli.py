@@ -227,3 +227,16 @@ def test_synth_and_eval_help_show_single_percent_signs(capsys):
             main([cmd, "--help"])
         out = capsys.readouterr().out
         assert "%" in out and "%%" not in out, cmd
+
+
+def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch, capsys) -> None:
+    import importlib
+
+    from rigkit.cli import main
+
+    def interrupted(name: str, *args: object) -> object:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib, "import_module", interrupted)
+    assert main(["--help"]) == 130
+    assert capsys.readouterr().err == "rigkit: interrupted\n"

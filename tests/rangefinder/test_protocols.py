@@ -414,5 +414,5 @@ def test_absurd_ranges_are_refused_by_the_parser(distance: str) -> None:
 
 def test_a_vectronix_range_beyond_any_module_is_refused() -> None:
     body = "LM,Md," + vectronix_range_field(30_000.0)
-    with pytest.raises(FrameError, match="beyond the device's 0-25000 m"):
+    with pytest.raises(FrameError, match="beyond the device's 0.5-25000 m"):
         parse_vectronix(vectronix_frame(body), 0.0)

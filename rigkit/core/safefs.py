@@ -1,0 +1,89 @@
+"""The one rule for files rigkit opens inside a folder it does not trust (a session
+copied from a card, synced from a laptop, unpacked from an archive), as careful archive
+tools treat what they unpack:
+
+* a file rigkit writes, appends to, locks or reads there is opened without following
+  a symbolic link (``O_NOFOLLOW``) and without blocking (``O_NONBLOCK``), and must turn
+  out to be a regular file: never a link to a frame or to ``/etc``, a FIFO that would
+  hang the command, or a device such as ``/dev/zero``;
+* a folder rigkit owns there (``raw/``, ``.staging``, ``results/``, ``derived/``) must
+  be a real folder, not a link to one elsewhere, before anything is stored in it or
+  deleted from it.
+
+Anything else is refused with :class:`~rigkit.errors.InputError`, one line naming the
+path and what it is, before a byte is written or deleted. Tests:
+``tests/core/test_safefs.py`` and ``tests/capture/test_hostile_session.py``.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import stat
+from pathlib import Path
+
+from rigkit.errors import InputError
+
+_KINDS = {stat.S_IFLNK: "a symbolic link", stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a device",
+          stat.S_IFBLK: "a device", stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a folder"}
+
+
+def kind_of(mode: int) -> str:
+    """What a file of ``st_mode`` is, in words ("a FIFO", "a regular file")."""
+    return _KINDS.get(stat.S_IFMT(mode), "a regular file")
+
+
+def refusal(path: Path, what: str) -> InputError:
+    """The one line for a path that is not what rigkit may use there."""
+    return InputError(f"{path}: is {what}, not a regular file; rigkit does not follow links "
+                      "or open special files inside a session (remove it)")
+
+
+def open_regular(path: Path, flags: int, mode: int = 0o666) -> int:
+    """``os.open`` of ``path`` that refuses a symbolic link, a FIFO, a device or a folder
+    (InputError naming it); a descriptor of a regular file otherwise, in blocking mode.
+    Other failures (a missing file without ``O_CREAT``, no permission) raise OSError."""
+    try:
+        fd = os.open(path, flags | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, mode)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise refusal(path, "a symbolic link") from None
+        if exc.errno in (errno.ENXIO, errno.EISDIR, errno.ENODEV):
+            raise refusal(path, _lkind(path)) from None
+        raise
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        raise refusal(path, kind_of(info.st_mode))
+    fcntl.fcntl(fd, fcntl.F_SETFL, fcntl.fcntl(fd, fcntl.F_GETFL) & ~os.O_NONBLOCK)
+    return fd
+
+
+def read_regular(path: Path) -> bytes:
+    """The bytes of the regular file ``path`` (:func:`open_regular`'s rule)."""
+    fd = open_regular(path, os.O_RDONLY)
+    with os.fdopen(fd, "rb") as handle:
+        return handle.read()
+
+
+def real_folder(path: Path, create: bool = False) -> Path:
+    """``path`` if it is a real folder (not a link to one; made first with ``create``);
+    InputError naming it otherwise. FileNotFoundError where it is missing and not made."""
+    if create:
+        try:
+            path.mkdir()
+        except FileExistsError:
+            pass
+    info = os.lstat(path)
+    if not stat.S_ISDIR(info.st_mode):
+        raise InputError(f"{path}: is {kind_of(info.st_mode)}, not a folder; rigkit keeps its "
+                         "own folders inside the session and does not follow links (remove it)")
+    return path
+
+
+def _lkind(path: Path) -> str:
+    try:
+        return kind_of(os.lstat(path).st_mode)
+    except OSError:
+        return "not a regular file"
