@@ -37,7 +37,7 @@ from rigkit.capture import load_session
 from rigkit.capture.positioning import set_rig
 from rigkit.reporting.scale import session_targets
 from rigkit.rig import load_rig
-from rigkit.rig.calibration import calibrated_profile, fit_scale
+from rigkit.rig.calibration import LaserTarget, calibrated_profile, fit_scale
 from rigkit.rig.profile import dump_rig
 from rigkit.synth import SynthParams, generate_scene
 from rigkit.synth.evaluate import evaluate_scene
@@ -59,7 +59,13 @@ def main(argv: list[str] | None = None) -> int:
                         help="how far the profile's focal length is off, %% (sign drawn)")
     parser.add_argument("--stray", type=float, default=0.0,
                         help="put the first target's reading this many %% off")
+    parser.add_argument("--plan", action="store_true",
+                        help="print what N targets over a depth spread buy (the fit's own "
+                             "sigma, no rendering) and stop")
     args = parser.parse_args(argv)
+    if args.plan:
+        _plan(args.laser_sigma_m)
+        return 0
     print(f"{'seed':>5} {'C_lb off':>8} {'f off':>6} {'bias before':>11} {'after':>7} "
           f"{'C_lb fitted':>14} {'z':>5} {'shape':>6} {'strays':>8} {'worst LOO':>9}")
     results = [_seed(seed, args) for seed in seed_list(args.seeds)]
@@ -71,6 +77,25 @@ def main(argv: list[str] | None = None) -> int:
           f"{len(results)}; fitted C_lb within 2 sigma of the truth in "
           f"{np.sum(np.abs(z) <= 2)}/{len(results)} (RMS z {np.sqrt(np.mean(z**2)):.2f})")
     return 0
+
+
+def _plan(laser_sigma_m: float, own: float = 0.002, z0: float = 300.0) -> None:
+    """The one-sigma the fit leaves, for N targets spread evenly over +-spread of z0, each
+    with the laser's sigma and an estimate good to ``own`` (0.2 %, what full-resolution
+    targets show in the leave-one-out checks), under the P1000 profile's tolerances."""
+    profile = load_rig(Path(__file__).resolve().parents[1] / "rigs" / "p1000-tripod.yaml")
+    print(f"laser +-{laser_sigma_m:g} m, estimate +-{100 * own:g} %, at {z0:g} m; "
+          "one sigma of the depth maps' scale and of f*C_lr, %")
+    print(f"{'targets':>8} {'spread':>8} {'scale':>7} {'f*C_lr':>8}")
+    for n in (1, 3, 6, 12):
+        for spread in (0.03, 0.15, 0.4):
+            ranges = np.linspace(z0 * (1 - spread), z0 * (1 + spread), n) if n > 1 else [z0]
+            targets = [LaserTarget(f"T{i}", t, laser_sigma_m, t, own * t, z0)
+                       for i, t in enumerate(ranges)]
+            fit = fit_scale(targets, profile)
+            shape = f"{100 * fit.shape_sigma:7.2f}" if fit.shape_fitted else "   held"
+            print(f"{n:>8} {'+-' + f'{100 * spread:g} %':>8} {100 * fit.map_scale_sigma:7.3f}"
+                  f" {shape:>8}")
 
 
 def _seed(seed: int, args: argparse.Namespace) -> tuple[float, float, float]:
