@@ -45,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    _printable_names()
     try:  # Ctrl-C while the commands' modules load is an interruption like any other
         parser = build_parser()
     except KeyboardInterrupt as exc:
@@ -67,6 +68,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
         return 2
     return code
+
+
+def _printable_names() -> None:
+    """A path whose bytes are not UTF-8 (a card's folder, an archive's) reaches Python as
+    text with lone surrogates; printed, it shows as ``\udcff`` escapes instead of
+    stopping the command."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(AttributeError, ValueError):
+            stream.reconfigure(errors="backslashreplace")  # type: ignore[union-attr]
 
 
 def _interrupted(who: str, exc: KeyboardInterrupt) -> int:

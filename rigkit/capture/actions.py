@@ -22,6 +22,7 @@ from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.exif import ExifInfo, read_exif
 from rigkit.capture.frames import FrameFile, capture_problems
 from rigkit.capture.imagesize import check_before_copy
+from rigkit.capture.lock import session_lock
 from rigkit.capture.rawio import is_raw, load_linear_grey
 from rigkit.capture.session import (
     DEFAULT_WINDOW_PX,
@@ -41,7 +42,6 @@ from rigkit.capture.session import (
     load_session,
     log_event,
     save_session,
-    session_lock,
     utc_now,
 )
 from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
@@ -124,7 +124,7 @@ def add_frame(
     ``rendered by rigkit synth, seed 7``, which does not depend on the machine).
 
     The change is made under the session's lock on the session as it is on disk then
-    (:func:`rigkit.capture.session.session_lock`), so concurrent changes all land.
+    (:func:`rigkit.capture.lock.session_lock`), so concurrent changes all land.
     """
     if position not in POSITIONS:
         raise InputError(f"position {position!r}: expected one of {', '.join(POSITIONS)}")
@@ -192,7 +192,7 @@ def _checked_frame(session: Session, position: str, source: Path, staged: Path,
 @contextmanager
 def changing(path: Path, action: str, wait_s: float = EDIT_WAIT_S) -> Iterator[Session]:
     """The session at ``path`` as it is on disk, for a change made under its lock
-    (:func:`rigkit.capture.session.session_lock`; ``action`` names the change for
+    (:func:`rigkit.capture.lock.session_lock`; ``action`` names the change for
     others), after repairing what an interrupted command left (:func:`repair_session`)."""
     with session_lock(path, action, wait_s):
         repair_session(path)

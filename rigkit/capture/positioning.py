@@ -9,7 +9,8 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
-from rigkit.capture.session import Session, load_session, log_event, save_session, session_lock
+from rigkit.capture.lock import session_lock
+from rigkit.capture.session import Session, load_session, log_event, save_session
 from rigkit.capture.tripod import TripodPosition, check_position
 from rigkit.core.files import file_sha256
 from rigkit.errors import InputError

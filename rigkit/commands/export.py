@@ -88,4 +88,5 @@ def summary(done: Any) -> list[str]:
                   f"up, roll {roll:+.2f} deg; {len(fit.names)} targets spanning "
                   f"{fit.spread_deg:.2f} deg, residuals (deg) {residuals}, "
                   f"RMS {fit.rms_residual_deg:.2f}"]
+        lines += [f"  left out: {note}" for note in georef.left_out]
     return lines

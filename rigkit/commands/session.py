@@ -301,7 +301,8 @@ def _last_rows(session: Any) -> list[Any]:
 def _show_text(session: Any) -> str:
     from rigkit.capture import POSITIONS, frame_problems
     from rigkit.capture.actions import stale_results
-    from rigkit.capture.session import lock_holder, stray_readings
+    from rigkit.capture.lock import lock_holder
+    from rigkit.capture.session import stray_readings
 
     lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
     if session.operator:

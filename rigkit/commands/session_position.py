@@ -4,6 +4,7 @@ from a GPS), and the rig profile the session is processed with."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +73,7 @@ def run_set_position(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
     from rigkit.capture.positioning import set_tripod_position
     from rigkit.errors import InputError
+    from rigkit.export.georef import utm_epsg
 
     typed = [args.lat, args.lon, args.height_m]
     if args.gps is not None and any(v is not None for v in typed):
@@ -83,6 +85,11 @@ def run_set_position(args: argparse.Namespace) -> int:
     set_tripod_position(args.session, position)
     print(f"tripod at {position.lat_deg:.7f}, {position.lon_deg:.7f}, "
           f"{position.height_m:.2f} m ({position.source})")
+    try:
+        utm_epsg(position.lat_deg, position.lon_deg)
+    except InputError as exc:  # recorded all the same: it is where the tripod stood
+        print(f"warning: {exc}: `rigkit export` can place this session's points only in "
+              "the camera frame (--frame camera)", file=sys.stderr)
     return 0
 
 

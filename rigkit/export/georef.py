@@ -126,6 +126,21 @@ class Orientation:
                 -math.degrees(math.asin(right[2])))
 
 
+def half_sighted(session: Session) -> list[str]:
+    """The targets georeferencing leaves out although a reading has half a direction:
+    "T3 has an azimuth but no inclination" (or the other way round)."""
+    notes = []
+    for target in session.targets:
+        readings = target.readings
+        if any(r.azimuth_deg is not None and r.inclination_deg is not None for r in readings):
+            continue
+        if any(r.azimuth_deg is not None for r in readings):
+            notes.append(f"{target.name} has an azimuth but no inclination")
+        elif any(r.inclination_deg is not None for r in readings):
+            notes.append(f"{target.name} has an inclination but no azimuth")
+    return notes
+
+
 def orient_camera(session: Session, source: DepthMap,
                   max_residual_deg: float = MAX_RESIDUAL_DEG) -> Orientation:
     """Solve the left camera's orientation from the session's targets; InputError (one
@@ -133,9 +148,10 @@ def orient_camera(session: Session, source: DepthMap,
     one misses by more than ``max_residual_deg``."""
     found = sightings(session, source.f, source.cx, source.cy)
     if len(found) < 2:
+        half = "".join(f"; {note}" for note in half_sighted(session))
         raise InputError(
             f"{session.path}: georeferencing needs 2 or more targets with a laser azimuth "
-            f"and inclination, {len(found)} have them (rigkit session add-target ... "
+            f"and inclination, {len(found)} have them{half} (rigkit session add-target ... "
             "--azimuth DEG --inclination DEG), or export with --frame camera")
     width, height = source.size
     fov = 2 * math.degrees(math.atan(math.hypot(width, height) / 2 / source.f))
@@ -176,6 +192,8 @@ class Georeference:
     position: TripodPosition
     orientation: Orientation
     epsg: int
+    left_out: tuple[str, ...] = ()
+    """Targets left out for half a direction (:func:`half_sighted`)."""
 
     @property
     def crs(self) -> Any:
@@ -225,4 +243,5 @@ def georeference(source: DepthMap, max_residual_deg: float = MAX_RESIDUAL_DEG
     if position is None:
         raise InputError(f"{session.path}: no tripod position (rigkit session set-position)")
     orientation = orient_camera(session, source, max_residual_deg)
-    return Georeference(position, orientation, utm_epsg(position.lat_deg, position.lon_deg))
+    return Georeference(position, orientation, utm_epsg(position.lat_deg, position.lon_deg),
+                        tuple(half_sighted(session)))

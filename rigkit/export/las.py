@@ -72,6 +72,9 @@ class LasWriter:
         points.intensity = level
         points.red = points.green = points.blue = level
         points.sigma = chunk.sigma
+        one = np.ones(len(chunk.grey), np.uint8)  # one return per pixel: LAS 1.4 wants >= 1
+        points.return_number = one
+        points.number_of_returns = one
         self._writer.write_points(points)
 
     def close(self) -> None:

@@ -220,3 +220,13 @@ def test_a_file_name_that_is_not_utf8_is_stored_and_logged(
     assert (session / "raw" / "left-_.png").read_bytes() == odd.read_bytes()
     assert "left raw/left-_.png" in (session / "history.log").read_text()
     assert "left-_.png" in (session / "session.yaml").read_text()
+
+
+def test_a_session_whose_path_is_not_utf8_is_processed(
+    small_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = Path(os.fsdecode(bytes(tmp_path) + b"/card-\xff"))
+    folder.mkdir()
+    session = copy_session(small_session, folder)
+    assert main(["process", str(session), "--quiet"]) == 0  # once a SIGSEGV in OpenCV
+    assert (session / "results" / "depth.npy").is_file()

@@ -25,7 +25,7 @@ from rigkit.capture import (
 )
 from rigkit.capture.actions import create_session_in, stale_results
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
-from rigkit.capture.session import session_lock
+from rigkit.capture.lock import session_lock
 from rigkit.cli import main
 from rigkit.core import files
 from rigkit.errors import InputError

@@ -147,3 +147,18 @@ def test_the_rig_profile_says_whether_azimuths_are_magnetic() -> None:
 def test_bad_azimuth_references_are_refused(values: dict, message: str) -> None:
     with pytest.raises(InputError, match=message):
         _rangefinder(values)
+
+
+def test_a_position_utm_cannot_hold_is_recorded_with_a_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    s = session(tmp_path)
+    assert main(["session", "set-position", str(s), "--lat", "86.1", "--lon", "12.0",
+                 "--height-m", "40"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: latitude 86.1: UTM covers 80 S to 84 N only" in err
+    assert "--frame camera" in err
+    assert load_session(s).tripod is not None
+    assert main(["session", "set-position", str(s), "--lat", "46.5", "--lon", "7.9",
+                 "--height-m", "1000"]) == 0
+    assert capsys.readouterr().err == ""

@@ -49,6 +49,8 @@ def test_the_bundled_example_as_ply_las_laz_and_tif(
         assert np.allclose(las.x, ply["x"], atol=1e-3) and np.array_equal(las.red // 257,
                                                                           ply["red"])
         assert np.allclose(las.sigma, ply["sigma"])
+        # One return per pixel: LAS 1.4 readers refuse return number 0.
+        assert set(las.return_number) == {1} and set(las.number_of_returns) == {1}
     with tifffile.TiffFile(out / "example.tif") as tif:
         bands = tif.asarray()
         meta = tif.shaped_metadata[0]

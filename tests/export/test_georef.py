@@ -142,3 +142,23 @@ def test_without_a_tripod_position_auto_is_the_camera_frame(
                  capsys)
     assert "no tripod position (rigkit session set-position)" in err
     assert math.isfinite(done.median_z_m)
+
+
+def test_a_target_with_half_a_direction_is_named_when_left_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = georeferenced_session(tmp_path, ROTATION, CORNERS, [0.0, 0.0, 0.0])
+    data = yaml.safe_load((session / "session.yaml").read_text())
+    for reading in data["targets"][2]["readings"]:
+        del reading["inclination_deg"]  # T3: an azimuth, no inclination
+    (session / "session.yaml").write_text(yaml.safe_dump(data))
+    assert main(["export", str(session), "--out", str(tmp_path / "out"), "--format", "ply",
+                 "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "2 targets spanning" in printed
+    assert "  left out: T3 has an azimuth but no inclination" in printed
+    for reading in data["targets"][1]["readings"]:
+        del reading["inclination_deg"]  # T2 too: one target left, and both named
+    (session / "session.yaml").write_text(yaml.safe_dump(data))
+    err = _error(["export", str(session), "--out", str(tmp_path / "out2")], capsys)
+    assert "1 have them; T2 has an azimuth but no inclination; T3 has an azimuth" in err
