@@ -76,10 +76,10 @@ def run(args: argparse.Namespace) -> int:
         capture = args.session.parent if args.session is not None else args.capture
         config = FieldConfig(capture=capture, session=args.session, rig=args.rig,
                              watch=args.watch, port=args.port, protocol=args.protocol)
-    run_field(config)
+    code = run_field(config)
     if args.demo:
         print(f"the demo session is kept in {config.session}")
-    return 0
+    return code
 
 
 def _open_or_create(session: Path | None, rig: Path | None) -> None:

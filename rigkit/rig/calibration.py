@@ -139,7 +139,7 @@ def fit_scale(targets: Sequence[LaserTarget], profile: RigProfile) -> ScaleFit:
         priors = (0.0, priors[1])
     solution = _solve(used, priors)
     if solution.dof > 0 and _chance(solution.chi2, solution.dof) < CONSISTENT_P:
-        worst, miss = _worst(used, priors)
+        _, miss, worst = _worst_miss(used, priors)
         raise InputError(
             f"the laser targets disagree with each other beyond their sigma: {worst.name} "
             f"misses the others' fit by {miss:+.2f} % (a laser on the wrong object, a shape "
@@ -175,10 +175,14 @@ def _offsets_share(targets: Sequence[LaserTarget]) -> float:
 def _priors(profile: RigProfile) -> tuple[float, float]:
     """The relative one-sigma of f * C_lr and of C_lb the profile claims (its tolerances;
     :data:`UNSTATED_TOLERANCE` for one it leaves at 0)."""
-    f, lr, lb = (x or UNSTATED_TOLERANCE for x in (
-        profile.focal_tolerance, profile.baseline_lr.relative_tolerance,
-        profile.baseline_lb.relative_tolerance))
-    return math.hypot(f, lr), lb
+    f, lr = _shape_tolerances(profile)
+    return math.hypot(f, lr), profile.baseline_lb.relative_tolerance or UNSTATED_TOLERANCE
+
+
+def _shape_tolerances(profile: RigProfile) -> tuple[float, float]:
+    """The relative tolerances of f and of C_lr (:data:`UNSTATED_TOLERANCE` for 0)."""
+    return (profile.focal_tolerance or UNSTATED_TOLERANCE,
+            profile.baseline_lr.relative_tolerance or UNSTATED_TOLERANCE)
 
 
 def _rows(targets: Sequence[LaserTarget]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -227,13 +231,17 @@ def _prediction(t: LaserTarget, solution: _Solution) -> tuple[float, float]:
     return predicted, math.sqrt(sigma[0] ** 2 + spread)
 
 
-def _loo(t: LaserTarget, targets: Sequence[LaserTarget], priors: tuple[float, float]
-         ) -> tuple[float, float, _Solution]:
-    """The target's miss in sigmas and in % of range under the fit without it."""
-    solution = _solve([x for x in targets if x is not t], priors)
-    predicted, sigma = _prediction(t, solution)
-    miss = 1 / t.estimate_m - predicted
-    return miss / sigma, 100 * miss * t.laser_m, solution
+def _worst_miss(targets: Sequence[LaserTarget], priors: tuple[float, float]
+                ) -> tuple[float, float, LaserTarget]:
+    """The target whose estimate the fit without it misses by the most sigmas: those
+    sigmas, the miss in % of range (negative: the estimate reads short) and the target."""
+    worst = (-1.0, math.nan, targets[0])
+    for t in targets:
+        predicted, sigma = _prediction(t, _solve([x for x in targets if x is not t], priors))
+        miss = 1 / t.estimate_m - predicted
+        if abs(miss) / sigma > worst[0]:
+            worst = (abs(miss) / sigma, -100 * miss * t.laser_m, t)
+    return worst
 
 
 def _without_strays(targets: list[LaserTarget], priors: tuple[float, float]
@@ -243,11 +251,10 @@ def _without_strays(targets: list[LaserTarget], priors: tuple[float, float]
     strays: list[tuple[LaserTarget, float]] = []
     allowed = max(1, len(targets) // 4)
     while len(targets) > MIN_CHECKED and len(strays) < allowed:
-        scored = [(abs(z), pct, t) for t in targets for z, pct, _ in [_loo(t, targets, priors)]]
-        score, pct, worst = max(scored, key=lambda s: s[0])
+        score, pct, worst = _worst_miss(targets, priors)
         if score <= STRAY_SIGMAS:
             break
-        strays.append((worst, -pct))
+        strays.append((worst, pct))
         targets = [t for t in targets if t is not worst]
     return targets, strays
 
@@ -255,16 +262,6 @@ def _without_strays(targets: list[LaserTarget], priors: tuple[float, float]
 def _sees_shape(targets: Sequence[LaserTarget], priors: tuple[float, float]) -> bool:
     """Whether the targets bring f * C_lr's sigma below FIT_SHAPE_BELOW of its prior."""
     return math.sqrt(_solve(targets, priors).cov[0, 0]) < FIT_SHAPE_BELOW * priors[0]
-
-
-def _worst(targets: Sequence[LaserTarget], priors: tuple[float, float]
-           ) -> tuple[LaserTarget, float]:
-    """The target whose leave-one-out miss is largest in sigmas, and that miss in %."""
-    if len(targets) < 2:
-        return targets[0], math.nan
-    scored = [(abs(z), pct, t) for t in targets for z, pct, _ in [_loo(t, targets, priors)]]
-    _, pct, worst = max(scored, key=lambda s: s[0])
-    return worst, -pct
 
 
 def _check(t: LaserTarget, targets: Sequence[LaserTarget], priors: tuple[float, float]
@@ -297,8 +294,8 @@ def calibrated_profile(profile: RigProfile, fit: ScaleFit, note: str) -> RigProf
     baseline_lb = Baseline(lb.value_m * fit.scale, lb.value_m * fit.scale_sigma)
     cameras, baseline_lr = dict(profile.cameras), profile.baseline_lr
     if fit.shape_fitted:
-        tol_f, tol_c = profile.focal_tolerance, profile.baseline_lr.relative_tolerance
-        share = tol_f**2 / (tol_f**2 + tol_c**2) if tol_f or tol_c else 0.5
+        tol_f, tol_c = _shape_tolerances(profile)
+        share = tol_f**2 / (tol_f**2 + tol_c**2)
         f_factor, c_factor = fit.shape**share, fit.shape ** (1 - share)
         for role, camera in cameras.items():
             focal = camera.focal_px * f_factor

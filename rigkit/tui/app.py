@@ -9,6 +9,7 @@ session folder is always up to date: quitting or a crash loses nothing, and star
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import threading
 from pathlib import Path
@@ -19,7 +20,7 @@ from textual.binding import Binding
 from textual.message import Message
 from textual.theme import Theme
 
-from rigkit.capture import Session, load_session
+from rigkit.capture import Session, is_session, load_session, log_event
 from rigkit.capture.field import (
     add_position_frame,
     burst_misfit,
@@ -67,17 +68,35 @@ FIELD_THEME = Theme(
     dark=True,
 )
 
-def run_field(config: FieldConfig) -> None:
-    """Run ``rigkit field`` in this terminal. Textual draws on ``sys.__stderr__``;
-    it gets a duplicate of the terminal of its own, so that while a decoder's messages
-    are captured from descriptor 2 (:mod:`rigkit.core.chatter`) the screen stays."""
+def run_field(config: FieldConfig) -> int:
+    """Run ``rigkit field`` in this terminal; its exit status: 0, or 1 where an error
+    ended the app (which ``history.log`` then records). Textual draws on
+    ``sys.__stderr__``; it gets a duplicate of the terminal of its own, so that while a
+    decoder's messages are captured from descriptor 2 (:mod:`rigkit.core.chatter`) the
+    screen stays."""
     terminal, saved = private_terminal(), sys.__stderr__
     setattr(sys, "__stderr__", terminal)  # noqa: B010 (the name is read-only to mypy only)
+    app = FieldApp(config)
     try:
-        FieldApp(config).run()
+        app.run()
     finally:
         setattr(sys, "__stderr__", saved)  # noqa: B010
         terminal.close()
+    return ended_by_error(app)
+
+
+def ended_by_error(app: FieldApp) -> int:
+    """1, with a line in the session's ``history.log``, where an exception ended ``app``;
+    else its own return code (0)."""
+    error = app._exception  # Textual keeps what ended the app there
+    if error is None and not app.return_code:
+        return 0
+    session = app.session.path if app.session is not None else app.config.session
+    if session is not None and is_session(session):
+        with contextlib.suppress(OSError, RigkitError):
+            log_event(session, "field", f"stopped by an internal error: "
+                      f"{type(error).__name__}: {error}; please report it")
+    return 1
 
 
 class FieldApp(App[None]):

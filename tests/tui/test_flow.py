@@ -333,3 +333,34 @@ async def test_a_frame_of_the_next_position_is_held_back_with_a_question(demo: D
                        "the frame at the right position")
     assert [Path(f.file).name for f in frames_at(load_session(session), "right")] == \
         ["DSCN0002.PNG"]
+
+
+@synchronous
+async def test_next_past_empty_positions_reaches_targets_without_a_crash(demo: Demo) -> None:
+    """Issue 37, item 1: `n` through LEFT, RIGHT and BACK with no frames used to end the
+    app with an IndexError and exit status 0."""
+    session, app = watching_app(demo)
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "the rig")
+        for _ in range(4):
+            await pilot.press("n")
+            await pilot.pause()
+        await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
+                       and "no left frame yet" in text(app, "#link"), "the targets step")
+        await pilot.press("q")
+    assert app._exception is None
+
+
+@synchronous
+async def test_an_error_that_ends_the_app_is_status_1_and_logged(demo: Demo) -> None:
+    from rigkit.tui.app import ended_by_error
+
+    session, app = watching_app(demo)
+    with pytest.raises(ZeroDivisionError):  # the test harness raises what ended the app
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "the rig")
+            app.call_later(lambda: 1 / 0)  # a bug anywhere in the app
+            await pilot.pause()
+    assert ended_by_error(app) == 1
+    assert "field        stopped by an internal error: ZeroDivisionError" in (
+        session / "history.log").read_text()

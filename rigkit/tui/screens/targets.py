@@ -88,8 +88,13 @@ class TargetsScreen(StepScreen):
     @work(thread=True, group="aim")
     def _load_left(self) -> None:
         session = self.session
+        lefts = frames_at(session, "left")
+        if not lefts:  # reached with n past empty positions: nothing to aim in
+            self.app.call_from_thread(self._link, "no left frame yet: press b to go back "
+                                      "and take one; targets are marked in the left view")
+            return
         try:
-            image, reduction = check_image(session, frames_at(session, "left")[-1])
+            image, reduction = check_image(session, lefts[-1])
         except RigkitError as exc:
             self.app.call_from_thread(self._link, str(exc))
             return
