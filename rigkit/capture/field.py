@@ -132,9 +132,15 @@ def add_position_frame(session: Session, position: str, path: Path,
     (their files stay in ``raw/``): when ``retake`` says so or, left None, when the
     position's newest frame failed its on-site checks."""
     if retake is None:
-        retake = bool(frames_at(session, position)) and not all_ok(
-            onsite_checks(session, position))
+        retake = newest_failed(session, position)
     return add_frame(session, position, path, burst=not retake, replace_existing=retake)
+
+
+def newest_failed(session: Session, position: str) -> bool:
+    """Whether ``position``'s newest frame failed its on-site checks: the next frame is
+    then its retake, and never compared with it as a burst (a failed frame is nobody's
+    reference)."""
+    return bool(frames_at(session, position)) and not all_ok(onsite_checks(session, position))
 
 
 def reading_from_device(reading: Reading, source: str) -> LaserReading:

@@ -26,6 +26,7 @@ from rigkit.capture.field import (
     burst_misfit,
     check_image,
     frames_at,
+    newest_failed,
     next_step,
     onsite_checks,
 )
@@ -211,12 +212,13 @@ class FieldApp(App[None]):
         (blocking; called from worker threads). A frame that does not match the
         position's burst is held back with a question instead (unless ``retake``)."""
         assert self.session is not None
+        retake = retake or newest_failed(self.session, position)  # a retake joins no burst
         misfit = None if retake else burst_misfit(self.session, position, path)
         if misfit is not None:
             self.tell(FrameHeld(position, path, misfit))
             return
         try:
-            session = add_position_frame(self.session, position, path, retake or None)
+            session = add_position_frame(self.session, position, path, retake)
         except RigkitError as exc:
             self.tell(FrameRefused(position, str(exc)))
             return

@@ -364,3 +364,27 @@ async def test_an_error_that_ends_the_app_is_status_1_and_logged(demo: Demo) -> 
     assert ended_by_error(app) == 1
     assert "field        stopped by an internal error: ZeroDivisionError" in (
         session / "history.log").read_text()
+
+
+@synchronous
+async def test_a_retake_after_a_failed_frame_is_filed_where_it_was_taken(demo: Demo) -> None:
+    """Issue 37, item 2: at RIGHT the left view taken again fails its parallax check;
+    the correct right frame that follows used to be compared with the failed one, held
+    as "taken from another position" and offered for the back position."""
+    session, app = watching_app(demo)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("n")
+        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
+        write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
+        await take_position(pilot, app, "left")
+        await pilot.press("n")
+        await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
+        write_frame(demo.card / "DSCN0002.PNG", demo.scene / "left.png", iso=200)  # again
+        await wait_for(pilot, lambda: "DSCN0002" in text(app, "#checks")
+                       and "✘" in text(app, "#checks"), "the failed parallax check")
+        write_frame(demo.card / "DSCN0003.PNG", demo.scene / "right.png")
+        await wait_for(pilot, lambda: "DSCN0003" in text(app, "#checks"), "the retake's checks")
+        assert "does not match" not in text(app, "#checks").replace("\n", " ")
+    saved = load_session(session)
+    assert [Path(f.file).name for f in frames_at(saved, "right")] == ["DSCN0003.PNG"]
+    assert not frames_at(saved, "back")
