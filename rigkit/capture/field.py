@@ -32,6 +32,7 @@ A position holds one frame or a burst of several; :func:`frames_at` and
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -141,6 +142,45 @@ def newest_failed(session: Session, position: str) -> bool:
     then its retake, and never compared with it as a burst (a failed frame is nobody's
     reference)."""
     return bool(frames_at(session, position)) and not all_ok(onsite_checks(session, position))
+
+
+TYPO_SPREAD = 0.05
+"""A typed range this far (5 %) from the target's other readings' median is doubted:
+one target's readings agree within the laser's metre."""
+TYPO_FACTOR = 1.5
+"""A target's first typed range more than this factor from the back view's implied
+range or the profile's planned one is doubted (a 3011 typed for 301.1)."""
+
+
+def reading_doubt(range_m: float, others: Sequence[float], implied_m: float | None,
+                  planned_m: float | None) -> str | None:
+    """Why a range typed for a target looks like a typo, or None: far from the target's
+    other readings (m) where it has some, else from the range the back view implied or
+    the profile's planned range (m, None where unknown)."""
+    if others:
+        middle = statistics.median(others)
+        if abs(range_m - middle) > TYPO_SPREAD * middle:
+            return f"{range_m:g} m is far from this target's other readings ({middle:.1f} m)"
+        return None
+    for what, reference in (("the back view implied", implied_m),
+                            ("the profile plans", planned_m)):
+        if reference and not reference / TYPO_FACTOR <= range_m <= reference * TYPO_FACTOR:
+            return f"{range_m:g} m is far from the ~{reference:.0f} m {what}"
+    return None
+
+
+def implied_range(session: Session) -> float | None:
+    """The range (m) the back frame's magnification implies against the left frame,
+    None without both or where they cannot be matched."""
+    if not (frames_at(session, "left") and frames_at(session, "back")):
+        return None
+    try:
+        left, reduction = check_image(session, frames_at(session, "left")[-1])
+        view = _view_of(session, "back", left, reduction)
+    except RigkitError:
+        return None
+    z = implied_range_m(view.scale, session.rig().baseline_lb.value_m)
+    return z if math.isfinite(z) else None
 
 
 def reading_from_device(reading: Reading, source: str) -> LaserReading:

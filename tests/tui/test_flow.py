@@ -388,3 +388,34 @@ async def test_a_retake_after_a_failed_frame_is_filed_where_it_was_taken(demo: D
     saved = load_session(session)
     assert [Path(f.file).name for f in frames_at(saved, "right")] == ["DSCN0003.PNG"]
     assert not frames_at(saved, "back")
+
+
+@synchronous
+async def test_a_typo_asks_first_and_x_drops_the_reading_under_the_cursor(demo: Demo) -> None:
+    """Issue 37, items 3 and 5: 2011 typed for ~200 m is asked about before it is kept;
+    x drops the reading under the readings cursor, not the newest; the panel lists what
+    session.yaml holds; the target that gets the next shot says so."""
+    session = create_session(demo.capture / "typo", demo.rig)
+    for position in ("left", "right", "back"):
+        session = add_position_frame(session, position, demo.scene / f"{position}.png")
+    app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
+
+    def readings() -> list[float]:
+        return [r.slope_distance_m for r in load_session(session.path).targets[0].readings]
+
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
+                       and app.screen.query_one(PixelView).cursor is not None, "the left view")
+        await pilot.press("enter")  # T1
+        assert "T1" in text(app, "#targets") and "← next shot" in text(app, "#targets")
+        await pilot.press("m", *"2011", "enter")
+        await pilot.pause()
+        assert readings() == []  # asked, not kept
+        await pilot.press("m", *"2011", "enter")  # typed again: kept
+        await pilot.press("m", *"200.5", "enter", "m", *"200.5", "enter")
+        await wait_for(pilot, lambda: readings() == [2011.0, 200.5], "both readings")
+        await pilot.press("left_square_bracket", "x")  # the older one, under the cursor
+        await wait_for(pilot, lambda: readings() == [200.5], "the typo dropped")
+        panel = text(app, "#readings")
+        assert "200.50 m" in panel and "2011.00" not in panel
+        await pilot.press("q")

@@ -15,7 +15,13 @@ from textual.worker import get_current_worker
 
 from rigkit.capture import LaserReading, Session, Target, add_target, utc_now
 from rigkit.capture.actions import remove_reading, remove_target
-from rigkit.capture.field import check_image, frames_at, reading_from_device
+from rigkit.capture.field import (
+    check_image,
+    frames_at,
+    implied_range,
+    reading_doubt,
+    reading_from_device,
+)
 from rigkit.capture.session import stray_readings
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow
@@ -36,6 +42,8 @@ class TargetsScreen(StepScreen):
         Binding("minus", "zoom(-1)", show=False),
         Binding("t", "select", "select"),
         Binding("m", "manual", "range"),
+        Binding("left_square_bracket", "reading(-1)", show=False),  # the panel says it
+        Binding("right_square_bracket", "reading(1)", show=False),
         Binding("x", "drop_reading", "drop"),
         Binding("d", "drop_target", show=False),
         Binding("up", "move(0, -1)", show=False),
@@ -54,7 +62,9 @@ class TargetsScreen(StepScreen):
         self.session = session
         self.reduction = 1.0  # full-resolution px per px of the shown left view
         self.protocol = "trupulse"
-        self.readings: list[str] = []  # the newest first, as shown
+        self.last_shot = ""  # what the newest shot was and where it went
+        self.reading_at = -1  # the reading under the readings cursor (-1: the newest)
+        self.implied_m: float | None = None  # the range the back view implied
         self.selected = session.targets[-1].name if session.targets else None
         self.confirm = ""  # the action a second key press confirms ("d T2", "n")
 
@@ -100,6 +110,7 @@ class TargetsScreen(StepScreen):
             return
         self.reduction = reduction
         self.app.call_from_thread(self._show_left, image)
+        self.implied_m = implied_range(session)  # what a typed range is held against
 
     def _show_left(self, image: np.ndarray) -> None:
         self.query_one(PixelView).set_image(image)
@@ -111,21 +122,24 @@ class TargetsScreen(StepScreen):
 
     def _show_targets(self) -> None:
         session = self.session
-        lines = ["[b]targets[/] (Enter: mark at the cursor; t: select; m: type its range; "
-                 "x: drop its newest reading; d: delete it)"]
+        lines = ["[b]targets[/] (Enter: mark; t: choose where the next shot goes; m: type "
+                 "its range; d: delete)"]
         for target in session.targets:
             ranges = [r.slope_distance_m for r in target.readings]
             middle = f"{statistics.median(ranges):.2f} m" if ranges else "no reading"
             strays = len(stray_readings(target))
             note = f" [b $warning]{strays} stray[/]" if strays else ""
-            mark = "[b $accent]›[/]" if target.name == self.selected else " "
+            chosen = target.name == self.selected
+            mark = "[b $accent]›[/]" if chosen else " "
+            shot = "  [b $accent]← next shot[/]" if chosen else ""
             lines.append(f"{mark}{target.name} ({target.pixel[0]:.0f}, {target.pixel[1]:.0f}) "
-                         f"{len(ranges)}x {middle}{note}")
+                         f"{len(ranges)}x {middle}{note}{shot}")
         view = self.query_one(PixelView)
         if view.cursor is not None:
             u, v = self._full(view.cursor)
             lines.append(f"cursor ({u:.0f}, {v:.0f})  zoom {view.zoom}x")
         self.query_one("#targets", Static).update("\n".join(lines))
+        self._show_readings()
         scale = self.reduction
         view.set_marks([Mark((t.pixel[0] + 0.5) / scale - 0.5, (t.pixel[1] + 0.5) / scale - 0.5,
                              t.name) for t in session.targets])
@@ -152,7 +166,7 @@ class TargetsScreen(StepScreen):
         name = next(f"T{n}" for n in range(1, len(taken) + 2) if f"T{n}" not in taken)
         pixel = self._full(view.cursor)
         self._changed(add_target(session, name, pixel))
-        self.selected = name
+        self.selected, self.reading_at = name, -1
         self._show_targets()
         demo = host(self).config.demo
         if demo is not None:
@@ -163,6 +177,7 @@ class TargetsScreen(StepScreen):
         if names:
             at = names.index(self.selected) if self.selected in names else -1
             self.selected = names[(at + 1) % len(names)]
+            self.reading_at = -1
             self._show_targets()
 
     def action_manual(self) -> None:
@@ -175,16 +190,42 @@ class TargetsScreen(StepScreen):
         entry.display = True
         entry.focus()
 
+    def action_reading(self, step: int) -> None:
+        """Move the readings cursor through the selected target's readings."""
+        target = self._current()
+        if target is None or not target.readings:
+            return
+        at = self.reading_at % len(target.readings)
+        self.reading_at = min(max(at + step, 0), len(target.readings) - 1)
+        self._show_readings()
+
     def action_drop_reading(self) -> None:
-        """Remove the selected target's newest reading (the session keeps a record)."""
+        """Remove the reading under the readings cursor (the session keeps a record)."""
         target = self._current()
         if target is None or not target.readings:
             self.notify("the selected target has no reading to drop", severity="warning")
             return
-        gone = target.readings[-1].slope_distance_m
-        self._changed(remove_reading(self.session, target.name, len(target.readings)))
-        self.notify(f"dropped {target.name}'s reading {len(target.readings)} ({gone:.2f} m)")
+        number = self.reading_at % len(target.readings) + 1
+        gone = target.readings[number - 1].slope_distance_m
+        self._changed(remove_reading(self.session, target.name, number))
+        self.reading_at = -1
+        self.notify(f"dropped {target.name}'s reading {number} ({gone:.2f} m)")
         self._show_targets()
+
+    def _show_readings(self) -> None:
+        """The selected target's readings as the session holds them, the one under the
+        readings cursor marked; the newest shot above them."""
+        target = self._current()
+        lines = ["[b]readings[/] ([ ]: choose; x: drop)"]
+        if self.last_shot:
+            lines.append(escape(self.last_shot))
+        if target is not None:
+            at = self.reading_at % len(target.readings) if target.readings else None
+            for i, reading in enumerate(target.readings):
+                mark = "[b $accent]›[/]" if i == at else " "
+                lines.append(f"{mark}{i + 1} {reading.slope_distance_m:8.2f} m "
+                             f"{escape(reading.source.split(':', 1)[0])}")
+        self.query_one("#readings", Static).update("\n".join(lines))
 
     def action_drop_target(self) -> None:
         """Remove the selected target, once ``d`` is pressed a second time."""
@@ -225,16 +266,26 @@ class TargetsScreen(StepScreen):
         except RigkitError as exc:
             self.notify(str(exc), severity="error")
             return
+        target = self._current()
+        others = [r.slope_distance_m for r in target.readings] if target else []
+        doubt = reading_doubt(value, others, self.implied_m, self.session.rig().nominal_range_m)
+        if doubt and self.confirm != f"m {value:g}":
+            self.confirm = f"m {value:g}"
+            self.notify(f"{doubt}: a typo? press m and type it again to keep it",
+                        severity="warning", timeout=10)
+            return
+        self.confirm = ""
         self._add_reading(LaserReading(value, utc_now(), "manual"))
 
     def _add_reading(self, reading: LaserReading) -> None:
+        """A shot (from the laser or typed) to the selected target: the rule the targets
+        list shows with "← next shot"."""
         target = self._current()
         source = reading.source.split(":", 1)[0]
-        self.readings.insert(
-            0, f"{reading.time_utc[11:19]} {reading.slope_distance_m:8.2f} m {source}")
-        del self.readings[6:]
+        self.last_shot = (f"last shot {reading.time_utc[11:19]} "
+                          f"{reading.slope_distance_m:.2f} m {source}")
         if target is None:
-            self.readings[0] += "  (not kept: mark a target first)"
+            self.last_shot += "  (not kept: mark a target first)"
         else:
             try:
                 session = add_target(self.session, target.name, target.pixel,
@@ -243,8 +294,8 @@ class TargetsScreen(StepScreen):
                 self.notify(str(exc), severity="error")
                 return
             self._changed(session)
-            self.readings[0] += f"  -> {target.name}"
-        self.query_one("#readings", Static).update("[b]readings[/]\n" + "\n".join(self.readings))
+            self.last_shot += f" -> {target.name}"
+            self.reading_at = -1
         self._show_targets()
 
     def _changed(self, session: Session) -> None:
