@@ -192,7 +192,7 @@ def check_rig(
         profile, disparity_error_px, offset_error_px, frames, shimmer_px, shimmer_corr_px
     )
     geometry = tuple(geometry_at(profile, z, disparity_error_px) for z in ranges_m)
-    findings = geometry_warnings(profile, geometry, model)
+    findings = geometry_warnings(profile, geometry, model) + _goal_warning(model)
     findings += capture_findings
     return RigCheck(
         profile=profile,
@@ -202,6 +202,20 @@ def check_rig(
         reach_m=tuple((p, range_reaching(model, p)) for p in TARGET_FRACTIONS),
         findings=tuple(findings),
     )
+
+
+def _goal_warning(model: ErrorModel) -> list[Finding]:
+    """A warning where the profile's tolerances alone put 1 % depth error out of reach
+    at every range (the table says so too; a warning says what to do)."""
+    goal = TARGET_FRACTIONS[0]
+    if range_reaching(model, goal) != 0.0:
+        return []
+    fixed = 100 * model.constant_term
+    return [Finding(
+        "budget", f"{100 * goal:g} % depth error is out of reach at every range: the f, "
+        f"C_lr and C_lb tolerances alone give {fixed:.2f} %",
+        redo="measure the baselines to better than their tolerances, or calibrate the "
+        "rig's scale from a session's laser targets (rigkit rig calibrate)")]
 
 
 def check_to_dict(check: RigCheck) -> dict[str, Any]:

@@ -211,8 +211,11 @@ def test_affine_residual_hand_computed() -> None:
 
 @pytest.mark.parametrize("path", [P1000, VEHICLE, SYNTHETIC], ids=lambda path: path.stem)
 def test_shipped_rigs_work_from_100_to_500_m(path: Path) -> None:
+    """No geometry warning; where the tolerances alone exceed 1 % of depth (a tape's 2 cm
+    on 2 m, a lens spec's 1 %), that one warning, which calibration answers."""
     check = check_rig(load_rig(path), [100.0, 200.0, 300.0, 400.0, 500.0])
-    assert check.findings == ()
+    tolerances_alone = check.model.constant_term > 0.01
+    assert [f.code for f in check.findings] == (["budget"] if tolerances_alone else [])
     assert [row.range_m for row in check.budget] == [100.0 + 50 * i for i in range(9)]
 
 
