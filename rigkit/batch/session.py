@@ -145,7 +145,7 @@ def _process_locked(
                     scale=run_scale_note(rows, run.profile, reference))
     return Outcome(
         session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
-        seconds, rows, (*run.warnings, *_stray_warnings(session)), verdict,
+        seconds, rows, (*run.warnings, *stray_warnings(session)), verdict,
     )
 
 
@@ -161,7 +161,7 @@ def _run_of_results(path: Path) -> str | None:
     return run if isinstance(run, str) else None
 
 
-def _stray_warnings(session: Session) -> list[str]:
+def stray_warnings(session: Session) -> list[str]:
     """One line per reading far from its target's others (:func:`stray_readings`)."""
     lines = []
     for target in session.targets:

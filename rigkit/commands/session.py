@@ -274,6 +274,22 @@ def run_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _processed(session: Any, stale: str | None) -> str:
+    """"processed (run ...)" where the results show the session as it is, else "ready
+    to process" (what makes them stale is said below it)."""
+    from rigkit.capture import RESULTS_DIR
+    from rigkit.core.safefs import read_regular
+    from rigkit.errors import InputError
+
+    if stale is not None:
+        return "ready to process"
+    try:
+        run = json.loads(read_regular(session.path / RESULTS_DIR / "depth.json"))["run_id"]
+    except (OSError, ValueError, InputError, KeyError, TypeError):
+        return "ready to process"
+    return f"processed (run {run}); rigkit process again to redo it"
+
+
 def _show_data(session: Any) -> dict[str, Any]:
     from dataclasses import asdict
 
@@ -336,8 +352,9 @@ def _show_text(session: Any) -> str:
         lines.append(f"  {target.name:<8} pixel ({target.pixel[0]:g}, {target.pixel[1]:g}) "
                      f"window {target.window_px}  laser [{ranges}] m  {target.note}".rstrip())
     problems = frame_problems(session)
-    lines.append("status   " + ("ready to process" if not problems else "; ".join(problems)))
-    for note in filter(None, (lock_holder(session.path), stale_results(session))):
+    stale = stale_results(session)
+    lines.append("status   " + ("; ".join(problems) if problems else _processed(session, stale)))
+    for note in filter(None, (lock_holder(session.path), stale)):
         lines.append(f"         {note}")
     from rigkit.reporting.verdict import row_label
 

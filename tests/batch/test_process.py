@@ -228,3 +228,10 @@ def test_a_session_with_bursts_and_a_lens_profile(tmp_path: Path) -> None:
     assert rows and all(abs(r.error_m) < 3 * r.estimate_sigma_m + 0.2 for r in rows)
     assert all(abs(r.error_pct) < 5 for r in rows)
     assert yaml.safe_load((out / RIG_FILE).read_text())["camera"]["distortion"]["k1"] == k1
+
+
+def test_session_show_says_processed_after_a_run(processed_session: Path, capsys) -> None:
+    assert main(["session", "show", str(processed_session)]) == 0
+    shown = capsys.readouterr().out
+    assert "status   processed (run 20260101T000000Z-0001)" in shown
+    assert "ready to process" not in shown

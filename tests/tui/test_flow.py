@@ -419,3 +419,24 @@ async def test_a_typo_asks_first_and_x_drops_the_reading_under_the_cursor(demo: 
         panel = text(app, "#readings")
         assert "200.50 m" in panel and "2011.00" not in panel
         await pilot.press("q")
+
+
+@pytest.mark.slow
+@synchronous
+async def test_the_verdict_shows_stray_readings_as_process_does(demo: Demo) -> None:
+    """Issue 37, item 8: `rigkit process` printed stray-reading warnings the TUI's
+    verdict did not show."""
+    from rigkit.capture import LaserReading, add_target, utc_now
+
+    session = create_session(demo.capture / "strays", demo.rig)
+    for position in ("left", "right", "back"):
+        session = add_position_frame(session, position, demo.scene / f"{position}.png")
+    readings = [LaserReading(r, utc_now(), "manual") for r in (200.5, 200.6, 230.0)]
+    add_target(session, "T1", (200.0, 150.0), readings=readings)
+    app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen)
+                       and "targets within" in text(app, "#verdict"), "the verdict", 60)
+        verdict = text(app, "#verdict").replace("\n", " ")
+        assert "T1: reading 3 (230.00 m) is far from the others" in verdict
+        await pilot.press("q")

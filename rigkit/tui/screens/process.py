@@ -15,6 +15,7 @@ from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
 from textual.worker import get_current_worker
 
 from rigkit.batch import new_run_id, process_session
+from rigkit.batch.session import stray_warnings
 from rigkit.capture import RESULTS_DIR, read_rows
 from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError, environment_message
@@ -116,7 +117,8 @@ class ProcessScreen(ExportingScreen):
                           error, "✔" if target.ok else "✘")
         colour = "$success" if verdict.ok else "$error"
         advice = "".join(f"\n- {escape(a)}" for a in verdict.advice)
-        advice += "".join(f"\n[$warning]{escape(note)}[/]" for note in shortfalls)
+        notes = [*shortfalls, *stray_warnings(session)]  # what `rigkit process` prints too
+        advice += "".join(f"\n[$warning]{escape(note)}[/]" for note in notes)
         if verdict.scale:
             advice += f"\n[b]scale:[/] {escape(verdict.scale)}"
         self.query_one("#verdict", Static).update(
