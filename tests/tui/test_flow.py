@@ -440,3 +440,21 @@ async def test_the_verdict_shows_stray_readings_as_process_does(demo: Demo) -> N
         verdict = text(app, "#verdict").replace("\n", " ")
         assert "T1: reading 3 (230.00 m) is far from the others" in verdict
         await pilot.press("q")
+
+
+@synchronous
+async def test_x_on_a_frame_asks_before_it_is_taken_out(demo: Demo) -> None:
+    """Issue 37, item 8: `x` took a frame out at once; frames now ask, as targets do."""
+    session, app = watching_app(demo)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("n")
+        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
+        write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
+        await take_position(pilot, app, "left")
+        await pilot.press("x")
+        await pilot.pause()
+        assert len(frames_at(load_session(session), "left")) == 1  # asked first
+        await pilot.press("x")
+        await wait_for(pilot, lambda: not frames_at(load_session(session), "left"),
+                       "the frame taken out")
+    assert (session / "raw" / "DSCN0001.PNG").is_file()  # its file stays

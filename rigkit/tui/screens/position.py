@@ -72,6 +72,7 @@ class PositionScreen(StepScreen):
         self.failed = ""  # the first failed check of the newest frame, if any
         self.held: Path | None = None  # a frame that arrived but does not fit the burst
         self.confirm = False  # n pressed once after a failed check
+        self.dropping = ""  # the frame x was pressed once for
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -184,10 +185,18 @@ class PositionScreen(StepScreen):
             self.held = None
 
     def action_drop_frame(self) -> None:
-        """Take the newest frame out of the position (its file stays in raw/)."""
+        """Take the newest frame out of the position (its file stays in raw/), once
+        ``x`` is pressed a second time for the same frame, as targets are dropped."""
         frames = frames_at(session_of(self), self.position)
         if not frames:
             return
+        name = Path(frames[-1].file).name
+        if self.dropping != frames[-1].file:
+            self.dropping = frames[-1].file
+            self.notify(f"press x again to take {name} out of the {self.position} position "
+                        "(its file stays in raw/)", severity="warning", timeout=8)
+            return
+        self.dropping = ""
         session = remove_frame(session_of(self), self.position)
         self.post_message(SessionChanged(session))
         self.notify(f"{Path(frames[-1].file).name} taken out of the {self.position} "
