@@ -16,6 +16,7 @@ EXAMPLE = """examples:
   rigkit synth out/scene --seed 7 --width 1152 --height 864      # a scene to try it on
   rigkit depth out/scene/left.png out/scene/right.png out/scene/back.png --focal-px 10990.73 \\
       --baseline-lr 2 --baseline-lb 2 --out out/scene-depth.npy --preview
+  rigkit eval out/scene --depth-dir out                                # its accuracy
 
   rigkit depth capture/example/raw/left.png,capture/example/raw/left-2.png,\\
 capture/example/raw/left-3.png capture/example/raw/right.png,capture/example/raw/right-2.png,\\

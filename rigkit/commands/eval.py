@@ -7,7 +7,8 @@ from pathlib import Path
 
 EXAMPLE = """example:
   rigkit eval out/scene-1 out/scene-2 --depth-dir out/depth --csv out/eval.csv
-  (the estimate for out/scene-1 is out/depth/scene-1.npy or out/depth/scene-1/depth.npy)
+  (the estimate for out/scene-1 is out/depth/scene-1.npy, out/depth/scene-1-depth.npy
+   or out/depth/scene-1/depth.npy)
   rigkit eval capture/example
   (a processed synthetic session: its own results/depth.npy)
 """

@@ -189,22 +189,32 @@ def failed_metrics(scene: str, reason: str) -> Metrics:
     return Metrics(scene, 0, 0.0, nan, nan, nan, nan, nan, failed=True, reason=reason)
 
 
-def find_estimate(depth_dir: Path | None, scene_dir: Path) -> Path | None:
-    """``DEPTH_DIR/<scene>.npy`` or ``DEPTH_DIR/<scene>/depth.npy``, whichever exists;
-    without ``depth_dir``, the scene's own ``results/depth.npy`` (a processed synthetic
-    session)."""
+def estimate_candidates(depth_dir: Path | None, scene_dir: Path) -> list[Path]:
+    """Where a scene's estimate may be: ``DEPTH_DIR/<scene>.npy``,
+    ``DEPTH_DIR/<scene>-depth.npy`` (as ``rigkit depth --help`` writes it) or
+    ``DEPTH_DIR/<scene>/depth.npy``; without ``depth_dir``, the scene's own
+    ``results/depth.npy`` (a processed synthetic session)."""
     if depth_dir is None:
-        candidates = [scene_dir / RESULTS_DIR / "depth.npy"]
-    else:
-        candidates = [depth_dir / f"{scene_dir.name}.npy", depth_dir / scene_dir.name / "depth.npy"]
-    return next((c for c in candidates if c.is_file()), None)
+        return [scene_dir / RESULTS_DIR / "depth.npy"]
+    name = scene_dir.name
+    return [depth_dir / f"{name}.npy", depth_dir / f"{name}-depth.npy",
+            depth_dir / name / "depth.npy"]
 
 
-def evaluate_scene(scene_dir: Path, estimate_path: Path | None) -> Metrics:
+def find_estimate(depth_dir: Path | None, scene_dir: Path) -> Path | None:
+    """The first of :func:`estimate_candidates` that exists."""
+    return next((c for c in estimate_candidates(depth_dir, scene_dir) if c.is_file()), None)
+
+
+def evaluate_scene(scene_dir: Path, estimate_path: Path | None,
+                   looked: Sequence[Path] = ()) -> Metrics:
+    """Metrics of the estimate at ``estimate_path`` (None: a failure saying it was not
+    found in any of ``looked``)."""
     name = scene_dir.name
     truth = load_scene(scene_dir)
     if estimate_path is None:
-        return failed_metrics(name, "no depth estimate")
+        where = f" (looked for {', '.join(map(str, looked))})" if looked else ""
+        return failed_metrics(name, f"no depth estimate{where}")
     try:
         est = np.load(estimate_path)
     except (OSError, ValueError) as exc:
@@ -220,7 +230,8 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None) -> Metrics:
 
 
 def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[Metrics]:
-    return [evaluate_scene(d, find_estimate(depth_dir, d)) for d in scene_dirs]
+    return [evaluate_scene(d, find_estimate(depth_dir, d), estimate_candidates(depth_dir, d))
+            for d in scene_dirs]
 
 
 def _mean(values: Sequence[float]) -> float:

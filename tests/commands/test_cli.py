@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -240,3 +241,21 @@ def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch, capsys) -> None
     monkeypatch.setattr(importlib, "import_module", interrupted)
     assert main(["--help"]) == 130
     assert capsys.readouterr().err == "rigkit: interrupted\n"
+
+
+@pytest.mark.slow
+def test_the_bundled_example_meets_its_goal(tmp_path: Path, capsys) -> None:
+    """What scripts/example.sh ends with: `rigkit eval --goal capture/example` after
+    processing it (here in a copy)."""
+    import shutil
+
+    from rigkit.cli import main
+
+    example = Path(__file__).resolve().parents[2] / "capture" / "example"
+    session = tmp_path / "example"
+    shutil.copytree(example, session, ignore=shutil.ignore_patterns(
+        "results", "derived", "comparisons.csv", "history.log", ".*"))
+    assert main(["process", str(session), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["eval", "--goal", str(session)]) == 0
+    assert "example: goal met" in capsys.readouterr().out

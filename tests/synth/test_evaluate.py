@@ -53,10 +53,19 @@ def test_visibility_excludes_what_the_right_camera_cannot_see(truth, judged) -> 
     assert 0.3 < judged.mean() < 0.999
 
 
-def test_missing_estimate_is_a_failure(scene_dir, tmp_path) -> None:
+def test_missing_estimate_is_a_failure_that_says_where_it_looked(scene_dir, tmp_path) -> None:
     rows = evaluate_scenes([scene_dir], tmp_path)
-    assert rows[0].failed and "no depth estimate" in rows[0].reason
+    assert rows[0].failed and "no depth estimate (looked for " in rows[0].reason
+    assert f"{tmp_path / scene_dir.name}-depth.npy" in rows[0].reason
     assert "failures: 1 of 1" in format_table(rows)
+
+
+def test_the_estimate_rigkit_depth_help_writes_is_found(scene_dir, truth, tmp_path) -> None:
+    """`rigkit depth ... --out out/scene-depth.npy` then `rigkit eval out/scene
+    --depth-dir out`, as `rigkit depth --help` shows (issue 37)."""
+    np.save(tmp_path / f"{scene_dir.name}-depth.npy", truth.depth("left"))
+    [row] = evaluate_scenes([scene_dir], tmp_path)
+    assert not row.failed and row.under_1 == pytest.approx(1.0)
 
 
 def test_wrong_shape_is_an_input_error(truth, judged) -> None:
