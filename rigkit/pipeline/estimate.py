@@ -178,9 +178,10 @@ so: the field issue's bar for a scene's median bias, which bursts meet."""
 
 
 OFFSET_ADVICE = {
-    "air": ("the matches' scatter between parts of the frame, which heat shimmer sets "
-            "above all: bursts of several frames per position and full-resolution frames "
-            "reduce it (docs/field.md)"),
+    "air": ("the offset's scatter between parts of the frame, as this run measured it "
+            "(heat shimmer where the air has any, else image noise and sparse matches): "
+            "bursts of several frames per position and full-resolution frames reduce it "
+            "(docs/field.md)"),
     "principal_points": ("the views' principal points, which may differ: one camera "
                          "moved between the three positions has one (rig profile: "
                          "pipeline: principal_point_sigma: 0; docs/rig-profiles.md)"),

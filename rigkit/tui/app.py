@@ -101,9 +101,10 @@ def ended_by_error(app: FieldApp) -> int:
 
 
 class FieldApp(App[None]):
-    """``rigkit field``: the guided three-position capture. Owns the session and the
-    background workers; the screens (:mod:`rigkit.tui.screens`) show steps and post
-    what the user asks for (:mod:`rigkit.tui.messages`)."""
+    """``rigkit field``: the guided three-position capture. Holds the session and runs
+    the frame workers (arrivals, ingest, checks); the screens (:mod:`rigkit.tui.screens`)
+    show steps, run their own step's long work (processing, export, the laser) and post
+    what changed or what the user asks for (:mod:`rigkit.tui.messages`)."""
 
     TITLE = "rigkit field"
     CSS_PATH = "field.tcss"
