@@ -45,7 +45,7 @@ StageReport = Callable[[str, float], None]
 RESULT_BYTES_PER_PIXEL = 13
 """What a run writes into ``results/``, per pixel of a frame: depth and sigma (float32
 each), the previews, grey and flags (10.9 bytes per pixel measured on the bundled
-example before flags.png, which adds at most one)."""
+example before the flags, which add at most one)."""
 
 
 def new_run_id() -> str:
@@ -127,7 +127,7 @@ def _process_locked(
         "sigma.npy": result.sigma,
         "depth.json": json.dumps(meta, indent=2),
         "grey.png": run.left_grey(),
-        "flags.png": result.flags(),
+        "flags.npy": result.flags(),
         **preview_set(run.left, result.depth, result.sigma, session.targets, rows,
                       result.disagree),
     }

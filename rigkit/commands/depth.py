@@ -30,7 +30,7 @@ the profile's image size. Writes DEPTH.npy ((H, W) float32, metres, z in the lef
 NaN = no estimate, in the original left image's pixel grid), DEPTH.sigma.npy (one
 standard error, metres), DEPTH.json (frames, rig, warnings, offset, matches, timings),
 DEPTH.grey.png (the left image as the pipeline saw it, 8-bit, for `rigkit export`),
-DEPTH.flags.png (what each pixel's depth rests on, as bits: 1 matched, 2 filled, 4 nothing
+DEPTH.flags.npy (what each pixel's depth rests on, uint8 bits: 1 matched, 2 filled, 4 nothing
 to match, 8 the views disagree: something moved between the captures) and with
 --preview DEPTH.png and DEPTH.sigma.png. Outputs appear together or not at all.
 """
@@ -187,7 +187,7 @@ def _outputs(run: Any, out: Path, preview: bool) -> dict[str, Any]:
         f"{out.stem}.sigma.npy": result.sigma,
         f"{out.stem}.json": json.dumps(run.metadata(), indent=2),
         f"{out.stem}.grey.png": run.left_grey(),
-        f"{out.stem}.flags.png": result.flags(),
+        f"{out.stem}.flags.npy": result.flags(),
     }
     if preview:
         lo, hi = depth_range(result.depth)

@@ -18,7 +18,7 @@ The pipeline makes many short-lived arrays the size of a 16 MP image (64 MB in f
   steady 22 ms without (what ``NUMPY_MADVISE_HUGEPAGE=0`` does from the environment).
 
 Together they took ~1.4 s off the 7.5 s of ``rigkit depth`` on a full-resolution
-triple, process start to exit (docs/results.md, "Memory for image-sized arrays").
+triple, process start to exit (docs/results-log.md, "Memory for image-sized arrays").
 :func:`tune_for_images` sets both from inside, so that every way of starting rigkit
 gets them; it is for the ``rigkit`` command and the benchmarks, not for a library
 import to do to its host process.

@@ -91,7 +91,7 @@ def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
     of what a view sees (its frame, a pixel with no disparity) is compared on its seen
     part alone; filling the rest with ``a`` would mix two cameras' gains in one window
     and read as a change. Computed in place where it can be: every fresh image-sized
-    array costs time to map in (docs/results.md, "Speed and memory")."""
+    array costs time to map in (docs/results-log.md, "Speed and memory")."""
     k = (window, window)
     seen = np.isfinite(b)
     w = seen.astype(np.float32)

@@ -265,7 +265,7 @@ def _tilt_beta_sigma(fit, back_px: np.ndarray, centre: np.ndarray, stretch_sq: f
     isotropic field: var(phi_yy) = 3c, var((phi_xx + phi_yy) / 2) = 2c); for two
     independent axes it is 1/2, so 2/3 holds for both. The offset's sensitivity to a
     back-view magnification turns it into a spread of ``beta``. One mode of one frame
-    is a small sample; on single frames in von Karman air (docs/results.md) it put
+    is a small sample; on single frames in von Karman air (docs/results-log.md) it put
     the offset's error within 2 sigma where the jackknife alone did not.
 
     back_px: (N, 2) the fitted matches' back positions (px), in the order of ``fit``'s

@@ -257,7 +257,7 @@ def _bounds(p0: np.ndarray, n_terms: int, baseline_lb_m: float) -> tuple[np.ndar
     behind; the rest free. Without them, on one field scene the first (plain) pass let
     bad tracks turn the baseline by 92 deg and lift the back camera 4 m, a minimum the
     robust pass did not leave (the corner's sigma 18 px, the offset's 73 % of depth;
-    docs/results.md)."""
+    docs/results-log.md)."""
     lower, upper = np.full(p0.size, -np.inf), np.full(p0.size, np.inf)
     phi = n_terms
     lower[phi], upper[phi] = p0[phi] - MAX_BASELINE_TURN_RAD, p0[phi] + MAX_BASELINE_TURN_RAD
@@ -394,7 +394,7 @@ def _fit_centres(
     scatter (robust RMS) times the square root of ``inflation``, how much more the fit
     moves than independent errors would move it (heat shimmer moves whole patches of
     tracks together; :func:`_lens_sigmas`). Without shimmer the views settle the
-    centres to a few px (truths 10-45 px off the image centre; docs/results.md); in
+    centres to a few px (truths 10-45 px off the image centre; docs/results-log.md); in
     shimmer the prior holds them near the image centre."""
     scatter = 1.4826 * float(np.median(np.abs(problem.residuals(x))))
     weight = scatter * np.sqrt(max(inflation, 1.0)) / prior_px
@@ -481,7 +481,7 @@ def _lens_sigmas(
     Gauss-Newton covariance: how far the yaw moves when the terms are held wrong. The
     cluster-robust covariance's correlations say how the noise moves the two together,
     not how one follows the other; on town bursts they put the lens's share of the
-    offset up to 7x too high (docs/results.md). A right principal point that moves the
+    offset up to 7x too high (docs/results-log.md). A right principal point that moves the
     yaw directly is the back view's to settle, not the lens's."""
     n = problem.n_terms
     # Each term is the fraction of the corner radius it moves the corner by.

@@ -171,7 +171,7 @@ class DepthResult:
 
 Progress = Callable[[str, float], None]
 FLAG_MATCHED, FLAG_FILLED, FLAG_NO_SURFACE, FLAG_DISAGREE = 1, 2, 4, 8
-"""Bits of :meth:`DepthResult.flags` (``flags.png`` in a session's results)."""
+"""Bits of :meth:`DepthResult.flags` (``flags.npy`` in a session's results)."""
 OFFSET_WARNING_FRACTION = 0.003
 """Above this relative depth error from the offset alone (one sigma) the result says
 so: the field issue's bar for a scene's median bias, which bursts meet."""

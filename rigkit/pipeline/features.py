@@ -179,7 +179,7 @@ def local_contrast(image: np.ndarray, window: int = CONTRAST_WINDOW_PX) -> np.nd
     shadow dims the sunlit part of a patch but not the haze in front of it). Matching
     the mean alone (a smooth gain), 670 of a town scene's 1768 left corners were
     tracked into the back view within 0.1 px forward-backward; normalised, 1157, with
-    the common tracks no less accurate against the truth (docs/results.md). The same
+    the common tracks no less accurate against the truth (docs/results-log.md). The same
     filter on both views keeps the shift between them: it is the normalisation of
     zero-mean normalised cross-correlation, applied before the tracker. The mean and
     spread vary at the window's scale, so they are taken on a half-size copy.

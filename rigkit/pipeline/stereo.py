@@ -114,7 +114,7 @@ def _merge_passes(disp: np.ndarray, disp_r: np.ndarray, tol: float) -> np.ndarra
     direction, and where they sat at the other side, in the other; which side depends on
     where the rectification happens to put the disparities. The mirrored pass, half a
     pixel apart, is drawn the other way, and the average cancels most of it: the median
-    error there fell from 0.19 to 0.05 stereo px (docs/results.md, "Tracking local
+    error there fell from 0.19 to 0.05 stereo px (docs/results-log.md, "Tracking local
     contrast; the stereo passes half a pixel apart"). It costs one shift of an 8-bit
     image."""
     with np.errstate(invalid="ignore"):

@@ -70,7 +70,8 @@ def _with_scale_bar(img: np.ndarray, lo: float, hi: float, label: str) -> np.nda
 
 
 def depth_range(depth: np.ndarray) -> tuple[float, float]:
-    """Robust display range (1st-99th percentile) of the finite depths, metres."""
+    """Robust display range (1st-99th percentile) of the finite values (depths in
+    metres, sigmas in % of depth), so that the colours show the map's structure."""
     finite = depth[np.isfinite(depth)]
     if finite.size == 0:
         return 0.0, 1.0
@@ -171,7 +172,7 @@ def preview_set(
     return {
         "depth.png": mark_targets(colorize(depth, lo, hi, "depth z (m)"), depth.shape,
                                   targets, rows),
-        "sigma.png": colorize(relative, 0.0, 2.0, "1-sigma error (% of depth)"),
+        "sigma.png": colorize(relative, *depth_range(relative), "1-sigma error (% of depth)"),
         "left.png": mark_targets(_shrink(grey), depth.shape, targets, rows),
     }
 

@@ -51,7 +51,7 @@ RELATIVE_ROTATION_DEG = 1.0
 """Rotation between cameras assumed for the affine residual (paper: up to 1 deg about x, y)."""
 LENS_FIT_CORNER_PX = 0.5
 """Error at the image corner of the distortion the pipeline fits from the views, px at
-REFERENCE_SIZE (field scenes with 0.3 px shimmer, docs/results.md; scaled by the image
+REFERENCE_SIZE (field scenes with 0.3 px shimmer, docs/results-log.md; scaled by the image
 size for other sizes)."""
 
 

@@ -22,7 +22,7 @@ REFERENCE_SIZE = (4608, 3456)
 OFFSET_FLOOR_PX = 0.37
 """Error of the global disparity offset without heat shimmer, px at REFERENCE_SIZE:
 what the views' principal points (up to ±30 px each in those scenes) leave: 0.37 px
-RMS over 20 ideal scenes (docs/results.md; 0.35 px since the lens fit's
+RMS over 20 ideal scenes (docs/results-log.md; 0.35 px since the lens fit's
 cluster-robust sigma, which this keeps as the rounder, larger figure)."""
 OFFSET_PER_SHIMMER_PX = 2.8
 """Offset error per px RMS of heat shimmer in one frame per position: on 20 field

@@ -61,7 +61,7 @@ def test_results_folder_is_complete(processed_session: Path) -> None:
     results = processed_session / "results"
     names = {p.name for p in results.iterdir()}
     assert names == {"depth.npy", "sigma.npy", "depth.json", "depth.png", "sigma.png",
-                     "left.png", "grey.png", "flags.png", "comparisons.csv"}
+                     "left.png", "grey.png", "flags.npy", "comparisons.csv"}
     depth = np.load(results / "depth.npy")
     assert depth.shape == (720, 960) and depth.dtype == np.float32
     meta = json.loads((results / "depth.json").read_text())

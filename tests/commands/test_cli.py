@@ -36,7 +36,7 @@ def test_depth_writes_depth_sigma_sidecar_and_previews(scene_depth, truth):
     assert grey.shape == depth.shape and grey.dtype == np.uint8
     assert meta["left_camera_px"] == {"f": truth.focal_px, "cx": 479.5, "cy": 359.5}
     # What each depth rests on: matched (1) or filled (2) wherever there is one.
-    flags_png = cv2.imread(str(folder / "d.flags.png"), cv2.IMREAD_UNCHANGED)
+    flags_png = np.load(folder / "d.flags.npy")  # data, not a picture: .npy
     assert flags_png.shape == depth.shape and flags_png.dtype == np.uint8
     known = np.isfinite(depth)
     assert np.all(flags_png[known] & 3) and not np.any(flags_png[~known] & 3)
