@@ -82,7 +82,7 @@ class PositionScreen(StepScreen):
                 yield Static(self._waiting(), id="checks")
             yield Vertical(id="preview")
         yield Input(placeholder="path of a frame file, then Enter (Esc: cancel)", id="path")
-        yield Footer()
+        yield Footer(compact=True)
 
     def _checklist(self) -> str:
         c_lb = f"{session_of(self).rig().baseline_lb.value_m:g} m in the profile"

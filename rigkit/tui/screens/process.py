@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -51,7 +52,7 @@ class ProcessScreen(ExportingScreen):
             yield Vertical(id="depth")
             yield DataTable(id="rows", cursor_type="none")
         yield Static("", id="verdict")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         table = self.query_one(DataTable)
@@ -123,23 +124,29 @@ class ProcessScreen(ExportingScreen):
             advice += f"\n[b]scale:[/] {escape(verdict.scale)}"
         self.query_one("#verdict", Static).update(
             f"[b {colour}]{escape(verdict.headline)}[/]{advice}")
+        self.call_later(self._show_depth, session.path / RESULTS_DIR / "depth.npy")
+
+    async def _show_depth(self, path: Path) -> None:
+        """The depth map's preview and its scale, in place of the previous run's (removed
+        first: processing again must not mount a second one beside it)."""
         box = self.query_one("#depth", Vertical)
-        box.remove_children()
+        await box.remove_children()
         try:
-            depth = np.load(session.path / RESULTS_DIR / "depth.npy")
+            depth = np.load(path)
         except (OSError, ValueError):
             return
         lo, hi = depth_range(depth)
         image = cv2.cvtColor(colour_map(depth, lo, hi), cv2.COLOR_BGR2RGB)
-        box.mount(PixelView(image), Static(_colour_bar(lo, hi), id="scale"))
+        await box.mount(PixelView(image), Static(_colour_bar(lo, hi), classes="scale"))
 
 
-def _colour_bar(lo: float, hi: float, steps: int = 12) -> Text:
-    """The depth preview's scale in text: ``289 m ████████ 312 m  depth z``."""
-    bar = Text(f"{lo:.0f} m ")
+def _colour_bar(lo: float, hi: float, steps: int = 6) -> Text:
+    """The depth preview's scale in text, two short lines that fit under a preview 14
+    columns wide (a 60-column terminal): ``depth z, m`` over ``289 ██████ 312``."""
+    bar = Text(f"depth z, m\n{lo:.0f} ")
     for rgb in scale_colours(steps):
         bar.append("█", style=f"rgb({rgb[0]},{rgb[1]},{rgb[2]})")
-    bar.append(f" {hi:.0f} m  depth z")
+    bar.append(f" {hi:.0f}")
     return bar
 
 

@@ -23,7 +23,7 @@ class RigScreen(StepScreen):
         yield Header()
         with VerticalScroll():  # many warnings scroll (arrows, page keys) at 80x24
             yield Static(self._summary(), id="rig")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         self.query_one(VerticalScroll).focus()

@@ -32,7 +32,7 @@ class StartScreen(Screen[None]):
         yield Static("New session: NAME RIG.yaml, then Enter", classes="title")
         yield Input(placeholder="ridge-0412 rigs/p1000-tripod.yaml", id="new")
         yield Static("", id="message")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         table = self.query_one(DataTable)

@@ -38,7 +38,7 @@ class TargetsScreen(StepScreen):
     BINDINGS = [
         Binding("left", "move(-1, 0)", "aim", key_display="←↑↓→"),
         Binding("enter", "mark", "mark"),
-        Binding("plus,equals_sign", "zoom(1)", "zoom", key_display="+-"),
+        Binding("plus,equals_sign", "zoom(1)", show=False),  # the targets panel says it
         Binding("minus", "zoom(-1)", show=False),
         Binding("t", "select", "select"),
         Binding("m", "manual", "range"),
@@ -77,7 +77,7 @@ class TargetsScreen(StepScreen):
                 yield Static("", id="targets")
                 yield Static("", id="readings")
         yield Input(placeholder="range in metres, then Enter (Esc: cancel)", id="range")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         self.query_one("#range", Input).display = False
@@ -122,8 +122,8 @@ class TargetsScreen(StepScreen):
 
     def _show_targets(self) -> None:
         session = self.session
-        lines = ["[b]targets[/] (Enter: mark; t: choose where the next shot goes; m: type "
-                 "its range; d: delete)"]
+        lines = ["[b]targets[/] (Enter: mark; +-: zoom; t: choose where the next shot goes; "
+                 "m: type its range; d: delete)"]
         for target in session.targets:
             ranges = [r.slope_distance_m for r in target.readings]
             middle = f"{statistics.median(ranges):.2f} m" if ranges else "no reading"
