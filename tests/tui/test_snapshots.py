@@ -117,4 +117,3 @@ def test_results_of_a_run(snap_compare, capture: Path) -> None:
     np.save(path / "results" / "depth.npy", 250.0 + drawn_card().astype(np.float32) / 2.5)
     append_rows(path / LOG_NAME, [_row("T1", 301.2, 0.8), _row("T2", 288.0, -4.6)])
     assert snap_compare(app_for(capture, path), terminal_size=SIZE)
-
