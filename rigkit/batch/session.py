@@ -31,11 +31,11 @@ from rigkit.capture.session import (
     Session,
     load_session,
     log_event,
+    run_metadata,
     stray_readings,
     utc_now,
 )
 from rigkit.core.files import Content, check_free_space, replace_folder
-from rigkit.core.safefs import read_regular
 from rigkit.errors import InputError
 from rigkit.reporting.previews import preview_set
 from rigkit.reporting.scale import RunReference, run_scale_note
@@ -153,11 +153,7 @@ def _run_of_results(path: Path) -> str | None:
     """The run id of the session's results (None: none, or unreadable). Results and
     their rows are written under the lock, whole, once per run: a run id found here
     means this run's work is done (exactly once, whatever a cluster retries)."""
-    try:
-        meta = json.loads(read_regular(path / RESULTS_DIR / "depth.json"))
-    except (OSError, ValueError, InputError):
-        return None
-    run = meta.get("run_id") if isinstance(meta, dict) else None
+    run = (run_metadata(path) or {}).get("run_id")
     return run if isinstance(run, str) else None
 
 

@@ -21,6 +21,7 @@ and written atomically, so the file is always either the old or the new version)
 
 from __future__ import annotations
 
+import json
 import re
 import statistics
 from collections.abc import Mapping
@@ -38,7 +39,7 @@ from rigkit.capture.tripod import (
     tripod_to_data,
 )
 from rigkit.core.files import append_whole, write_text
-from rigkit.core.safefs import refusal
+from rigkit.core.safefs import read_regular, refusal
 from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.rangefinder.framing import MIN_RANGE_M
@@ -231,6 +232,16 @@ def save_session(session: Session) -> None:
     text = "# rigkit capture session; edit with `rigkit session`\n" + dump_yaml(
         session_to_data(session))
     write_text(session.yaml_path, text)
+
+
+def run_metadata(session_path: Path) -> dict[str, Any] | None:
+    """The latest run's ``results/depth.json`` as a mapping; None where the session has
+    none that can be read (missing, damaged, or a link or FIFO, which are not opened)."""
+    try:
+        meta = json.loads(read_regular(session_path / RESULTS_DIR / "depth.json"))
+    except (OSError, ValueError, InputError):
+        return None
+    return meta if isinstance(meta, dict) else None
 
 
 def log_event(session_path: Path, action: str, detail: str) -> None:

@@ -277,15 +277,10 @@ def run_show(args: argparse.Namespace) -> int:
 def _processed(session: Any, stale: str | None) -> str:
     """"processed (run ...)" where the results show the session as it is, else "ready
     to process" (what makes them stale is said below it)."""
-    from rigkit.capture import RESULTS_DIR
-    from rigkit.core.safefs import read_regular
-    from rigkit.errors import InputError
+    from rigkit.capture.session import run_metadata
 
-    if stale is not None:
-        return "ready to process"
-    try:
-        run = json.loads(read_regular(session.path / RESULTS_DIR / "depth.json"))["run_id"]
-    except (OSError, ValueError, InputError, KeyError, TypeError):
+    run = (run_metadata(session.path) or {}).get("run_id") if stale is None else None
+    if run is None:
         return "ready to process"
     return f"processed (run {run}); rigkit process again to redo it"
 

@@ -11,7 +11,6 @@ target of a run, and is what the fit measures.
 from __future__ import annotations
 
 import io
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ import numpy as np
 
 from rigkit.capture import RESULTS_DIR, Session
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
+from rigkit.capture.session import run_metadata
 from rigkit.core.safefs import read_regular
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
@@ -50,11 +50,8 @@ class RunReference:
 def run_reference(session_path: Path) -> RunReference | None:
     """The latest run's reference (None where the session has no readable run)."""
     results = session_path / RESULTS_DIR
-    try:
-        meta = json.loads(read_regular(results / "depth.json"))
-    except (OSError, ValueError, InputError):  # none, damaged, or a link or FIFO
-        return None
-    if not isinstance(meta, dict):
+    meta = run_metadata(session_path)
+    if meta is None:
         return None
     median = meta.get("median_depth_m")
     if not isinstance(median, int | float):  # a run before depth.json recorded it

@@ -12,16 +12,13 @@ share of depth, a burst too short for the air) says the capture misses it.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
-from rigkit.core.safefs import read_regular
-from rigkit.errors import InputError
+from rigkit.capture.session import run_metadata
 from rigkit.rig.budget import ErrorModel, budget_row
 from rigkit.rig.profile import RigProfile
 
@@ -128,9 +125,5 @@ def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tup
 def run_shortfalls(session_path: Path) -> tuple[str, ...]:
     """What the session's latest run said makes it miss the goal (``shortfalls`` in
     ``results/depth.json``); none without a readable run."""
-    try:
-        meta = json.loads(read_regular(session_path / RESULTS_DIR / "depth.json"))
-    except (OSError, ValueError, InputError):  # none, damaged, or a link or FIFO
-        return ()
-    found = meta.get("shortfalls") if isinstance(meta, dict) else None
+    found = (run_metadata(session_path) or {}).get("shortfalls")
     return tuple(str(s) for s in found) if isinstance(found, list) else ()
