@@ -49,6 +49,14 @@ async def take_position(pilot, app: FieldApp, position: str) -> str:
     return text(app, "#checks")
 
 
+async def take_the_left_frame(pilot, app: FieldApp, demo: Demo) -> None:
+    """From the rig screen on to LEFT, and the demo's left view arriving on the card."""
+    await pilot.press("n")
+    await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
+    write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
+    await take_position(pilot, app, "left")
+
+
 async def mark_target(pilot, app: FieldApp, moves: list[str], readings: int) -> None:
     await pilot.press(*moves, "enter")
     count = len(app.session.targets)  # type: ignore[union-attr]
@@ -299,10 +307,7 @@ async def test_a_failed_check_asks_before_moving_on(demo: Demo) -> None:
     # Before: n moved on after "the zoom changed" without a word.
     _, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
-        await pilot.press("n")
-        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
-        write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
-        await take_position(pilot, app, "left")
+        await take_the_left_frame(pilot, app, demo)
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "back.png")  # no parallax
@@ -320,10 +325,7 @@ async def test_a_frame_of_the_next_position_is_held_back_with_a_question(demo: D
     # Before: a right frame dropped in before n joined the left burst with green ticks.
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
-        await pilot.press("n")
-        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
-        write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
-        await take_position(pilot, app, "left")
+        await take_the_left_frame(pilot, app, demo)
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "right.png")  # too early
         await wait_for(pilot, lambda: "does not match the left burst" in
                        text(app, "#checks").replace("\n", " "), "the question")
@@ -373,10 +375,7 @@ async def test_a_retake_after_a_failed_frame_is_filed_where_it_was_taken(demo: D
     as "taken from another position" and offered for the back position."""
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
-        await pilot.press("n")
-        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
-        write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
-        await take_position(pilot, app, "left")
+        await take_the_left_frame(pilot, app, demo)
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "left.png", iso=200)  # again
@@ -447,10 +446,7 @@ async def test_x_on_a_frame_asks_before_it_is_taken_out(demo: Demo) -> None:
     """Issue 37, item 8: `x` took a frame out at once; frames now ask, as targets do."""
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
-        await pilot.press("n")
-        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
-        write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
-        await take_position(pilot, app, "left")
+        await take_the_left_frame(pilot, app, demo)
         await pilot.press("x")
         await pilot.pause()
         assert len(frames_at(load_session(session), "left")) == 1  # asked first
