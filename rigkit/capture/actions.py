@@ -9,7 +9,6 @@ atomically and logged in ``history.log``.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import os
 from collections.abc import Iterator, Sequence
@@ -41,11 +40,12 @@ from rigkit.capture.session import (
     is_session,
     load_session,
     log_event,
+    run_metadata,
     save_session,
     utc_now,
 )
 from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
-from rigkit.core.safefs import read_regular, real_folder
+from rigkit.core.safefs import real_folder
 from rigkit.errors import InputError
 from rigkit.rangefinder.ranging import max_range_m
 from rigkit.rig.profile import load_rig, rig_to_dict
@@ -226,10 +226,12 @@ def stale_results(session: Session) -> str | None:
     meta_path = session.path / RESULTS_DIR / "depth.json"
     if not meta_path.is_file():
         return None
+    meta = run_metadata(session.path)
+    if meta is None:  # damaged, a link or a FIFO
+        return "results/depth.json is unreadable; process again"
     try:
-        meta = json.loads(read_regular(meta_path).decode("utf-8"))
         recorded = {pos: [f.get("sha256") for f in meta["frames"][pos]] for pos in POSITIONS}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+    except (KeyError, TypeError, AttributeError):
         return "results/depth.json is unreadable; process again"
     current = {pos: [f.sha256 for f in session.bursts.get(pos, ())] for pos in POSITIONS}
     run = meta.get("run_id", "?")
