@@ -126,14 +126,8 @@ def add_frame(
     The change is made under the session's lock on the session as it is on disk then
     (:func:`rigkit.capture.lock.session_lock`), so concurrent changes all land.
     """
-    if position not in POSITIONS:
-        raise InputError(f"position {position!r}: expected one of {', '.join(POSITIONS)}")
     source = Path(source)
-    if not source.is_file():
-        raise InputError(f"{source}: no such file")
-    rig = session.rig()
-    check_before_copy(source, rig.image_size, f"the rig profile {rig.name} is for",
-                      raw=is_raw(source))
+    check_frame_file(session, position, source)
     with changing(session.path, "add-frame") as current:
         with _staged(current.path, source) as (staged, sha256):
             frame = _checked_frame(current, position, source, staged, sha256,
@@ -147,6 +141,19 @@ def add_frame(
         log_event(current.path, "add-frame",
                   f"{position} {frame.file} sha256={frame.sha256} from {frame.source}")
     return updated
+
+
+def check_frame_file(session: Session, position: str, source: Path) -> None:
+    """InputError naming ``source`` where what is cheap to know refuses it before it is
+    read whole: no such position, no such file, or a size on the file or in its header
+    that is not a frame of the session's rig (:func:`check_before_copy`)."""
+    if position not in POSITIONS:
+        raise InputError(f"position {position!r}: expected one of {', '.join(POSITIONS)}")
+    if not source.is_file():
+        raise InputError(f"{source}: no such file")
+    rig = session.rig()
+    check_before_copy(source, rig.image_size, f"the rig profile {rig.name} is for",
+                      raw=is_raw(source))
 
 
 def _text_name(name: str) -> str:

@@ -48,9 +48,16 @@ from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
 from rigkit.core.files import file_sha256
 from rigkit.errors import RigkitError
-from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, implied_range_m, roles_problem
+from rigkit.pipeline.checks import (
+    MAX_RIGHT_SCALE_CHANGE,
+    Parallax,
+    implied_range_m,
+    measure_parallax,
+    roles_problem,
+)
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.shimmer import measure_shimmer
+from rigkit.pipeline.rectify import pseudo_rectify
+from rigkit.pipeline.shimmer import Shimmer, measure_shimmer
 from rigkit.rangefinder.framing import Reading, escape_bytes
 from rigkit.rig.bursts import burst_advice
 from rigkit.rig.findings import Finding
@@ -58,11 +65,6 @@ from rigkit.rig.profile import RigProfile
 
 CHECK_SIDE_PX = 1024
 """Longest side of the reduced images the on-site checks work on, px."""
-MIN_PARALLAX_PX = 0.4
-"""Least parallax spread (10th to 90th percentile of the residual), in check-image px, for
-the right view to count as taken from another place: a camera turned on its tripod
-left ~0.2 px (tracking and sensor noise) in synthetic tests, a 2 m move at 300 m 0.75 px
-at 384 px wide and far more at full size."""
 MAX_BURST_SCALE_CHANGE = 0.002
 """The frames of one position's burst are one view: a scale change beyond this (the
 back position's magnification is 1 - C_lb / z, 0.007 at 300 m) is another position."""
@@ -81,14 +83,15 @@ class ViewMap:
 
     ``scale`` (other / left image size of the same object) and ``roll_deg`` (the scene
     appears turned clockwise on screen by this much in the other view, degrees, image y
-    down) are the homography's at the image centre; ``parallax_px`` (spread of the
-    residual after the best similarity: 10th to 90th percentile of its x component, px
-    of the full image), ``matches`` (sub-pixel tracks used).
+    down) are the homography's at the image centre; ``parallax``: the left/right
+    disparities' spread, as processing measures it (:func:`measure_parallax`), where
+    asked for and the views are the same size (else None); ``matches`` (sub-pixel
+    tracks used); ``reduction``: full-resolution px per check-image px.
     """
 
     scale: float
     roll_deg: float
-    parallax_px: float
+    parallax: Parallax | None
     matches: int
     reduction: float
 
@@ -115,15 +118,15 @@ def burst_misfit(session: Session, position: str, path: Path) -> str | None:
         grey = load_linear_grey(path, cache, file_sha256(path), session.rig().image_size)
         new = _reduced(to_pipeline([grey], linear=is_raw(path))[0])[0]
         first, reduction = check_image(session, frames[0])
-        view = map_views(first, new, reduction)
+        view = map_views(first, new, reduction, session.rig().focal_px)
     except RigkitError:
         return None
-    if (view.parallax_px < MIN_PARALLAX_PX * reduction
-            and abs(view.scale - 1.0) <= MAX_BURST_SCALE_CHANGE):
+    moved = view.parallax is not None and view.parallax.moved
+    if not moved and abs(view.scale - 1.0) <= MAX_BURST_SCALE_CHANGE:
         return None
-    return (f"{path.name} does not match the {position} burst (parallax "
-            f"{view.parallax_px:.1f} px, scale {view.scale:.4f}): it looks taken from "
-            "another position")
+    parallax = "" if view.parallax is None else f"parallax {view.parallax.spread_px:.1f} px, "
+    return (f"{path.name} does not match the {position} burst ({parallax}scale "
+            f"{view.scale:.4f}): it looks taken from another position")
 
 
 def add_position_frame(session: Session, position: str, path: Path,
@@ -196,6 +199,20 @@ def reading_from_device(reading: Reading, source: str) -> LaserReading:
     )
 
 
+def resume_step(session: Session) -> str:
+    """The step ``rigkit field`` opens ``session`` at: the one it was on when it stopped
+    (``session.field_step``), unless that needs frames the session lacks (then the first
+    position without one, :func:`next_step`); where no step was recorded, the rig while no
+    frame is taken, else :func:`next_step`."""
+    derived = next_step(session)
+    step = session.field_step
+    if step is None:
+        return "rig" if derived == "left" else derived
+    if step in ("targets", "process") and derived in POSITIONS:
+        return derived
+    return step
+
+
 def next_step(session: Session) -> str:
     """Where a capture stands: the first position without a frame, then ``targets``
     while no target has a reading, then ``process``."""
@@ -233,23 +250,31 @@ def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarra
     return image, reduction
 
 
-def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0) -> ViewMap:
-    """Fit a similarity (scale, roll, shift) from ``left`` to ``other`` (check images,
-    (h, w) float32) and measure what it leaves; PipelineError if they do not match."""
+def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0,
+              focal_px: float | None = None) -> ViewMap:
+    """How ``other`` maps onto ``left`` (check images, (h, w) float32, ``reduction``
+    full-resolution px per px): the scale and roll of the best homography at the image
+    centre and, given the full-resolution ``focal_px`` and views of the same size, the
+    left/right parallax as processing measures it (pseudo-rectified, so a camera only
+    turned leaves none). PipelineError if they do not match."""
     matches = match_views(left, other, "left/other", n_points=1500)
     a, b = matches.left.astype(np.float32), matches.other.astype(np.float32)
     similarity, _ = cv2.estimateAffinePartial2D(a, b, method=cv2.LMEDS)
     if similarity is None:
         similarity = matches.affine
-    residual = b - (a @ similarity[:, :2].T + similarity[:, 2])
-    low, high = np.percentile(residual[:, 0], [10, 90])
     centre = ((left.shape[1] - 1) / 2.0, (left.shape[0] - 1) / 2.0)
     local = _local_linear(a, b, centre, similarity[:, :2])
+    scale = float(math.sqrt(abs(np.linalg.det(local))))
+    parallax = None
+    if focal_px is not None and abs(scale - 1.0) <= MAX_RIGHT_SCALE_CHANGE:
+        size = (left.shape[1], left.shape[0])
+        rect = pseudo_rectify(matches, focal_px / reduction, size)
+        parallax = measure_parallax(matches, rect, reduction)
     return ViewMap(
-        scale=float(math.sqrt(abs(np.linalg.det(local)))),
+        scale=scale,
         roll_deg=float(math.degrees(math.atan2(local[1, 0] - local[0, 1],
                                                local[0, 0] + local[1, 1]))),
-        parallax_px=float(high - low) * reduction,
+        parallax=parallax,
         matches=len(a),
         reduction=reduction,
     )
@@ -312,25 +337,38 @@ def exposure_check(session: Session, frame: Frame) -> Finding:
     )
 
 
-def right_checks(view: ViewMap) -> list[Finding]:
-    """Parallax, roll and scale of the right view against the left one."""
-    move = "move the tripod C_lr to the right of the left position and take the right frame"
-    parallax_ok = view.parallax_px >= MIN_PARALLAX_PX * view.reduction
-    checks = [
-        Finding("parallax", f"parallax {view.parallax_px:.1f} px across the scene", ok=True)
-        if parallax_ok else Finding(
-            "parallax",
-            f"no parallax ({view.parallax_px:.2f} px): the tripod was not moved, or the "
-            "same view was taken twice", redo=move,
-        ),
-        _roll_check(view, "right"),
-    ]
-    if abs(view.scale - 1.0) > MAX_RIGHT_SCALE_CHANGE:
-        checks.append(Finding(
-            "scale", f"right view {view.scale:.4f}× the left one: the zoom changed",
-            redo="set the zoom back to the left frame's and take the right frame again",
-        ))
+def right_checks(view: ViewMap, profile: RigProfile | None = None) -> list[Finding]:
+    """Roll, scale and (where the scale is a right view's) parallax, by processing's
+    rule (:meth:`Parallax.problem`), of the right view against the left one. With the
+    rig ``profile``'s nominal range, a right view nearer the magnification a back view
+    shows there than 1 is taken for one taken behind."""
+    checks = [_roll_check(view, "right")]
+    scale = _right_scale_check(view.scale, profile)
+    if scale is not None:
+        return [*checks, scale]  # a magnified view's parallax means nothing
+    if view.parallax is not None:
+        problem = view.parallax.problem()
+        checks.insert(0, Finding("parallax", problem[0], redo=problem[1]) if problem else
+                      Finding("parallax", f"parallax {view.parallax.spread_px:.1f} px across "
+                              "the scene", ok=True))
     return checks
+
+
+def _right_scale_check(scale: float, profile: RigProfile | None) -> Finding | None:
+    if abs(scale - 1.0) > MAX_RIGHT_SCALE_CHANGE:
+        return Finding("scale", f"right view {scale:.4f}× the left one: the zoom changed",
+                       redo="set the zoom back to the left frame's and take the right frame "
+                       "again")
+    z = None if profile is None else profile.nominal_range_m
+    if z is None:
+        return None
+    back = z / (z + profile.baseline_lb.value_m)  # type: ignore[union-attr]
+    if scale >= (1.0 + back) / 2:
+        return None
+    return Finding("scale", f"right view {scale:.4f}× the left one, nearer the {back:.4f}× a "
+                   f"back view shows at {z:g} m: was it taken behind the left position?",
+                   redo="take the right frame beside the left position (C_lr to its right), "
+                   "at the same zoom")
 
 
 def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
@@ -372,20 +410,32 @@ def _round_range(z: float) -> str:
 
 
 def shimmer_check(session: Session, position: str) -> Finding | None:
-    """Heat shimmer measured between the first and the newest frame of ``position``'s
-    burst at full resolution (:mod:`rigkit.pipeline.shimmer`), and the burst length
-    that keeps the offset within 0.3 % of depth at the profile's nominal range in nine
-    captures out of ten (:func:`rigkit.rig.budget.frames_for_offset`). None for a
-    single frame. Always ok: shimmer is the air's fault, not the frame's."""
+    """Heat shimmer measured at full resolution between the first frame of
+    ``position``'s burst and each later one (:mod:`rigkit.pipeline.shimmer`), their
+    median, and the burst length that median calls for to keep the offset within 0.3 %
+    of depth at the profile's nominal range nine captures out of ten
+    (:func:`rigkit.rig.bursts.burst_advice`). One pair's figure moves with the air from
+    frame to frame (advice of 4, 5 and 6 frames for one capture); the median settles as
+    the burst grows, and the range of the pairs is shown with it. None for a single
+    frame. Always ok: shimmer is the air's fault, not the frame's."""
     frames = frames_at(session, position)
     if len(frames) < 2:
         return None
-    first = full_image(session, frames[0])
+    measured: list[Shimmer] = []
+    failure = ""
+    for number, frame in enumerate(frames[1:], 2):
+        try:
+            measured.append(_pair_shimmer(session, frames[0], frame, number))
+        except RigkitError as exc:
+            failure = str(exc)
+    if not measured:
+        return Finding("shimmer", f"heat shimmer not measured: {failure}", ok=True)
+    shimmer = _median_shimmer(measured)
     where = f"{position} frames 1 and {len(frames)}"
-    try:
-        shimmer = measure_shimmer(first, full_image(session, frames[-1]), where)
-    except RigkitError as exc:
-        return Finding("shimmer", f"heat shimmer not measured: {exc}", ok=True)
+    if len(measured) > 1:
+        rms = sorted(m.rms_px for m in measured)
+        where = (f"{position} frame 1 against {len(measured)} others: median, "
+                 f"{rms[0]:.2f}-{rms[-1]:.2f} px")
     profile = session.rig()
     z = profile.nominal_range_m
     if z is None:
@@ -393,6 +443,32 @@ def shimmer_check(session: Session, position: str) -> Finding | None:
                        "nominal range in the rig profile would give the burst length to "
                        "take", ok=True)
     return Finding("shimmer", burst_advice(profile, shimmer, where, z)[0], ok=True)
+
+
+_MEASURED: dict[tuple[str, str], Shimmer] = {}
+"""Shimmer measured between two frames, by their SHA-256: each frame of a burst is
+measured against the first once, not again for every frame after it."""
+
+
+def _pair_shimmer(session: Session, first: Frame, other: Frame, number: int) -> Shimmer:
+    key = (first.sha256, other.sha256)
+    if key not in _MEASURED:
+        where = f"{other.position} frames 1 and {number}"
+        _MEASURED[key] = measure_shimmer(full_image(session, first),
+                                         full_image(session, other), where)
+    return _MEASURED[key]
+
+
+def _median_shimmer(measured: Sequence[Shimmer]) -> Shimmer:
+    """The median of each figure of ``measured`` (the correlation length of those that
+    found one; NaN where none did)."""
+    corr = [m.corr_px for m in measured if math.isfinite(m.corr_px)]
+    return Shimmer(
+        rms_px=statistics.median(m.rms_px for m in measured),
+        corr_px=statistics.median(corr) if corr else math.nan,
+        tracker_px=statistics.median(m.tracker_px for m in measured),
+        points=min(m.points for m in measured),
+    )
 
 
 def onsite_checks(session: Session, position: str) -> list[Finding]:
@@ -411,7 +487,7 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
         return [*checks, Finding("match", str(exc), redo=f"aim at the left frame's scene and "
                                  f"take the {position} frame")]
     if position == "right":
-        return [*checks, *right_checks(view)]
+        return [*checks, *right_checks(view, session.rig())]
     back = back_checks(view, session.rig())
     if all_ok(back) and frames_at(session, "right"):  # magnified: is the right one less so?
         right = _view_of(session, "right", left, reduction)
@@ -422,7 +498,8 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
 def _view_of(session: Session, position: str, left: np.ndarray, reduction: float) -> ViewMap:
     """How ``position``'s newest frame maps onto the left check image ``left``."""
     other, _ = check_image(session, frames_at(session, position)[-1])
-    return map_views(left, other, reduction)
+    focal = session.rig().focal_px if position == "right" else None
+    return map_views(left, other, reduction, focal)
 
 
 def _roles_check(right: ViewMap, back: ViewMap, baseline_lb_m: float) -> list[Finding]:

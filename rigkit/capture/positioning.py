@@ -1,7 +1,8 @@
 """Recording what a session knows of its rig beyond frames and targets, under the
 session's lock like every other change to a session: where the tripod stood
-(``rigkit session set-position``) and the rig profile its frames are processed with
-(``rigkit session set-rig``, e.g. one ``rigkit rig calibrate`` wrote)."""
+(``rigkit session set-position``), the rig profile its frames are processed with
+(``rigkit session set-rig``, e.g. one ``rigkit rig calibrate`` wrote), and the step the
+capture at the tripod was on (``rigkit field`` resumes there)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,13 @@ from dataclasses import replace
 from pathlib import Path
 
 from rigkit.capture.lock import session_lock
-from rigkit.capture.session import Session, load_session, log_event, save_session
+from rigkit.capture.session import (
+    FIELD_STEPS,
+    Session,
+    load_session,
+    log_event,
+    save_session,
+)
 from rigkit.capture.tripod import TripodPosition, check_position
 from rigkit.core.files import file_sha256
 from rigkit.errors import InputError
@@ -53,4 +60,19 @@ def set_rig(path: Path, rig_path: Path) -> Session:
         save_session(updated)
         log_event(current.path, "set-rig", f"rig {rig_path} ({profile.name}; was "
                   f"{current.rig_reference}, {current.rig().name})")
+    return updated
+
+
+def set_field_step(path: Path, step: str) -> Session:
+    """Record that ``rigkit field`` is on ``step`` (one of :data:`FIELD_STEPS`), where it
+    resumes after a quit or a crash (:func:`rigkit.capture.field.resume_step`); returns
+    the session as saved. Not logged: the frames and readings taken there are."""
+    if step not in FIELD_STEPS:
+        raise InputError(f"step {step!r}: expected one of {', '.join(FIELD_STEPS)}")
+    with session_lock(Path(path), "field-step"):
+        current = load_session(path)
+        if current.field_step == step:
+            return current
+        updated = replace(current, field_step=step)
+        save_session(updated)
     return updated

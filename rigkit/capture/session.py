@@ -49,6 +49,9 @@ from rigkit.rig.profile import RigProfile, rig_from_data
 SESSION_FILE = "session.yaml"
 FORMAT = "rigkit-session/1"
 POSITIONS = ("left", "right", "back")
+FIELD_STEPS = ("rig", *POSITIONS, "targets", "process")
+"""The steps of a capture at the tripod (``rigkit field``), in order."""
+FIELD_STEP_KEY = "field_step"
 RAW_DIR = "raw"
 DERIVED_DIR = "derived"
 RESULTS_DIR = "results"
@@ -164,6 +167,8 @@ class Session:
     notes: str = ""
     tripod: TripodPosition | None = None
     """Where the tripod stood (``rigkit session set-position``), None if not recorded."""
+    field_step: str | None = None
+    """The step of :data:`FIELD_STEPS` ``rigkit field`` was last on, None if never."""
 
     @property
     def frames(self) -> Mapping[str, Frame]:
@@ -255,7 +260,7 @@ def _session_from_data(data: Any, path: Path) -> Session:
     top = top_key.mapping(
         data,
         required=("format", "name", "created_utc", "rig", "frames", "targets"),
-        optional=("operator", "notes", TRIPOD_KEY),
+        optional=("operator", "notes", TRIPOD_KEY, FIELD_STEP_KEY),
     )
     if top["format"] != FORMAT:
         raise top_key.child("format").error(f"must be {FORMAT}", top["format"])
@@ -286,9 +291,16 @@ def _session_from_data(data: Any, path: Path) -> Session:
         operator=_text(top.get("operator"), top_key.child("operator")),
         notes=_text(top.get("notes"), top_key.child("notes")),
         tripod=top_key.optional(top, TRIPOD_KEY, tripod_from_data),
+        field_step=top_key.optional(top, FIELD_STEP_KEY, _field_step),
     )
     _check_ranges(targets, max_range_m(session.rig()), targets_key)  # validates the rig
     return session
+
+
+def _field_step(value: Any, key: KeyPath) -> str:
+    if value not in FIELD_STEPS:
+        raise key.error(f"must be one of {', '.join(FIELD_STEPS)}", value)
+    return str(value)
 
 
 def _check_ranges(targets: tuple[Target, ...], longest_m: float, key: KeyPath) -> None:
@@ -408,6 +420,8 @@ def session_to_data(session: Session) -> dict[str, Any]:
     data["targets"] = [_target_to_data(t) for t in session.targets]
     if session.tripod is not None:
         data[TRIPOD_KEY] = tripod_to_data(session.tripod)
+    if session.field_step is not None:
+        data[FIELD_STEP_KEY] = session.field_step
     return data
 
 

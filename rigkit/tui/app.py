@@ -21,15 +21,17 @@ from textual.message import Message
 from textual.theme import Theme
 
 from rigkit.capture import Session, is_session, load_session, log_event
+from rigkit.capture.actions import check_frame_file
 from rigkit.capture.field import (
     add_position_frame,
     burst_misfit,
     check_image,
     frames_at,
     newest_failed,
-    next_step,
     onsite_checks,
+    resume_step,
 )
+from rigkit.capture.positioning import set_field_step
 from rigkit.core.chatter import private_terminal
 from rigkit.errors import RigkitError, environment_message
 from rigkit.tui.config import FieldConfig
@@ -132,11 +134,10 @@ class FieldApp(App[None]):
             self.push_screen(StartScreen())
 
     def open_session(self, session: Session) -> None:
-        """Show ``session`` where it stopped: the rig first while it has no frame yet."""
+        """Show ``session`` at the step it stopped at (:func:`resume_step`)."""
         self.session = session
         self.sub_title = session.name
-        step = next_step(session)
-        self.goto("rig" if step == "left" else step, resume=True)
+        self.goto(resume_step(session), resume=True)
 
     def goto(self, step: str, resume: bool = False) -> None:
         """Replace the current step's screen with ``step``'s (``resume``: opening a
@@ -152,6 +153,17 @@ class FieldApp(App[None]):
             self.switch_screen(screen)
         else:
             self.push_screen(screen)
+        self.remember_step(self.session.path, step)
+
+    @work(thread=True, group="step")
+    def remember_step(self, session: Path, step: str) -> None:
+        """Record ``step`` in the session, where ``rigkit field`` resumes it."""
+        try:
+            set_field_step(session, step)
+        except (RigkitError, OSError) as exc:
+            message = str(exc) if isinstance(exc, RigkitError) else environment_message(exc)
+            self.call_from_thread(self.notify, f"where the capture stands was not saved: "
+                                  f"{message}", severity="warning")
 
     def on_goto(self, message: Goto) -> None:
         self.goto(message.step, message.resume)
@@ -213,6 +225,14 @@ class FieldApp(App[None]):
         (blocking; called from worker threads). A frame that does not match the
         position's burst is held back with a question instead (unless ``retake``)."""
         assert self.session is not None
+        try:  # what is refused at a glance is told at once, before the slow comparisons
+            check_frame_file(self.session, position, path)
+        except RigkitError as exc:
+            self.tell(FrameRefused(position, str(exc)))
+            return
+        except OSError as exc:
+            self.tell(FrameRefused(position, environment_message(exc)))
+            return
         retake = retake or newest_failed(self.session, position)  # a retake joins no burst
         misfit = None if retake else burst_misfit(self.session, position, path)
         if misfit is not None:

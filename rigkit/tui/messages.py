@@ -98,3 +98,12 @@ class FrameChecked(Message):
     def __init__(self, position: str, checks: list[Finding], image: np.ndarray) -> None:
         super().__init__()
         self.position, self.checks, self.image = position, checks, image
+
+
+class CardFrames(Message):
+    """Frames on the card that the session does not hold (:func:`rigkit.tui.watch.unfiled`),
+    oldest first."""
+
+    def __init__(self, paths: list[Path]) -> None:
+        super().__init__()
+        self.paths = paths

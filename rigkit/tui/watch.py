@@ -11,15 +11,21 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterator
+from datetime import datetime
 from pathlib import Path
 
 from watchfiles import watch
 
+from rigkit.capture import POSITIONS, Session
 from rigkit.capture.rawio import RAW_SUFFIXES
+from rigkit.capture.session import RAW_DIR
 
 IMAGE_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".jpg", ".jpeg"}) | RAW_SUFFIXES
 SETTLE_S = 0.6
 """How long a file's size must stay the same before it counts, seconds."""
+CLOCK_ALLOWANCE_S = 3600.0
+"""How far a camera's clock (which dates the files on its card) may be behind the
+computer's and its frames still count as taken since a session began, seconds."""
 
 
 def is_frame_file(path: Path) -> bool:
@@ -62,3 +68,32 @@ def _settled(pending: dict[Path, tuple[int, float]], seen: set[Path], settle_s: 
             del pending[path]
             seen.add(path)
             yield path
+
+
+def unfiled(folder: Path, session: Session) -> list[Path]:
+    """The frame files in ``folder`` (recursively) taken since ``session`` began that it
+    does not hold, oldest first: frames that reached the card while ``rigkit field`` was
+    closed, or that the operator left on it. A file counts as held where ``raw/`` has one
+    of its name (or with a position's prefix, as ingest stores a second one) and size;
+    one taken out of a position stays in ``raw/`` and is not offered again."""
+    began = datetime.fromisoformat(session.created_utc).timestamp() - CLOCK_ALLOWANCE_S
+    raw = session.path / RAW_DIR
+    found = []
+    for path in folder.rglob("*"):
+        try:
+            info = path.stat()
+        except OSError:
+            continue
+        if not (path.is_file() and is_frame_file(path)) or info.st_mtime < began:
+            continue
+        held = (raw / name for name in (path.name, *(f"{p}-{path.name}" for p in POSITIONS)))
+        if not any(_same_size(copy, info.st_size) for copy in held):
+            found.append((info.st_mtime, path))
+    return [path for _, path in sorted(found)]
+
+
+def _same_size(path: Path, size: int) -> bool:
+    try:
+        return path.stat().st_size == size
+    except OSError:
+        return False

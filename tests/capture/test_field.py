@@ -14,7 +14,6 @@ import pytest
 
 from rigkit.capture import create_session, load_session
 from rigkit.capture.field import (
-    MIN_PARALLAX_PX,
     ViewMap,
     add_position_frame,
     back_checks,
@@ -26,7 +25,7 @@ from rigkit.capture.field import (
     right_checks,
 )
 from rigkit.errors import InputError
-from rigkit.pipeline.checks import implied_range_m
+from rigkit.pipeline.checks import MIN_PARALLAX_PX, Parallax, implied_range_m
 from rigkit.rig import load_rig
 from tests.conftest import rig_file
 
@@ -64,11 +63,11 @@ def test_implied_range_m_inverts_the_back_geometry() -> None:
 def test_map_views_recovers_a_known_similarity_with_no_parallax() -> None:
     left = texture()
     other = similarity(left, 0.99, 2.0, (4.0, -3.0))
-    view = map_views(left, other, reduction=4.0)
+    view = map_views(left, other, reduction=4.0, focal_px=4000.0)
     assert view.scale == pytest.approx(0.99, abs=3e-4)
     # getRotationMatrix2D turns the content counter-clockwise on screen: roll is -2 deg.
     assert view.roll_deg == pytest.approx(-2.0, abs=0.02)
-    assert view.parallax_px < 0.1 * 4.0
+    assert view.parallax is None  # zoomed by 1 %: not a right view, not rectified
     assert view.matches > 100
 
 
@@ -78,13 +77,55 @@ def test_map_views_measures_parallax_a_similarity_cannot_explain() -> None:
     v, u = np.mgrid[0:h, 0:w].astype(np.float32)
     bulge = 3.0 * np.sin(np.pi * v / h) * np.sin(np.pi * u / w)  # nearer in the middle
     other = cv2.remap(left, u + bulge, v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-    view = map_views(left, other)
-    assert view.parallax_px > MIN_PARALLAX_PX
+    view = map_views(left, other, focal_px=1000.0)
+    assert view.parallax is not None and view.parallax.spread_px > MIN_PARALLAX_PX
+    assert view.parallax.problem() is None
     assert view.scale == pytest.approx(1.0, abs=0.01)
 
 
+def _ramp(shape: tuple[int, int], top_px: float) -> np.ndarray:
+    """(H, W) disparities of a tilted plane, 0 to ``top_px`` px across the frame."""
+    h, w = shape
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    return top_px * (u / w + 0.5 * v / h) / 1.5
+
+
+def _tilted(left: np.ndarray, top_px: float) -> np.ndarray:
+    """``left`` seen from beside it across a tilted plane (:func:`_ramp`): a similarity
+    absorbs much of what that does to the view."""
+    h, w = left.shape
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    ramp = _ramp(left.shape, top_px)
+    return cv2.remap(left, u + ramp, v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+
+
+@pytest.mark.parametrize("reduction", [1.0, 1.5])
+def test_a_shallow_scene_seen_from_beside_passes_the_on_site_check_as_processing_does(
+        reduction: float) -> None:
+    """Issue 37, item 7: a tilted, nearly flat scene whose disparities spread 1.6 px
+    (full resolution) was refused on site with "no parallax (0.37 px)" while processing
+    gave 98.8 % within 1 %. One rule now: the rectified disparities' spread."""
+    left = texture(480, 360)
+    view = map_views(left, _tilted(left, 1.6 / reduction), reduction, 6000.0 * reduction)
+    assert view.parallax is not None
+    low, high = np.percentile(_ramp(left.shape, 1.6), [5, 95])
+    assert view.parallax.spread_px == pytest.approx(high - low, rel=0.25)  # was 0.37 of 1.6
+    assert _failed(right_checks(view)) == {}
+
+
+def test_little_depth_in_view_is_told_apart_from_an_unmoved_tripod() -> None:
+    left = texture(480, 360)
+    flat = map_views(left, _tilted(left, 0.35), 1.0, 6000.0)
+    turned = map_views(left, similarity(left, 1.0, 0.3, (2.0, 1.0)), 1.0, 6000.0)
+    assert flat.parallax is not None and turned.parallax is not None
+    assert flat.parallax.moved and not turned.parallax.moved
+    assert "little depth in view: the right frame moved" in right_checks(flat)[0].message
+    assert "the tripod was not moved" in right_checks(turned)[0].message
+
+
 def _view(scale: float = 1.0, roll: float = 0.5, parallax: float = 3.0) -> ViewMap:
-    return ViewMap(scale=scale, roll_deg=roll, parallax_px=parallax, matches=500, reduction=1.0)
+    return ViewMap(scale=scale, roll_deg=roll, parallax=Parallax(parallax, 0.05),
+                   matches=500, reduction=1.0)
 
 
 def _failed(checks: list) -> dict[str, str]:
@@ -94,9 +135,19 @@ def _failed(checks: list) -> dict[str, str]:
 def test_right_checks_catch_no_parallax_roll_and_zoom() -> None:
     assert _failed(right_checks(_view())) == {}
     failed = _failed(right_checks(_view(scale=1.03, roll=15.0, parallax=0.1)))
-    assert set(failed) == {"parallax", "rotation", "scale"}
+    assert set(failed) == {"rotation", "scale"}  # a zoomed view's parallax means nothing
+    assert "level the camera" in failed["rotation"] and "zoom" in failed["scale"]
+    failed = _failed(right_checks(_view(parallax=0.1)))
     assert "move the tripod" in failed["parallax"]
-    assert "level the camera" in failed["rotation"]
+
+
+def test_a_right_view_magnified_as_a_back_view_is_taken_for_one() -> None:
+    """A back frame given at the right position is 0.993x the left one at 300 m with
+    C_lb = 2 m: within a zoom's 1 %, but nearer the back view's scale than 1."""
+    profile = load_rig(SYNTHETIC)  # C_lb 2 m, nominal 300 m
+    failed = _failed(right_checks(_view(scale=300 / 302), profile))
+    assert set(failed) == {"scale"} and "beside the left position" in failed["scale"]
+    assert _failed(right_checks(_view(scale=0.9995), profile)) == {}
 
 
 def test_back_checks_give_the_implied_range_and_catch_a_wrong_back_frame() -> None:
@@ -190,6 +241,16 @@ def test_a_burst_measures_the_shimmer_and_the_frames_it_calls_for(tmp_path: Path
     # allowed (0.3 % nine times in ten), 0.16 px of it taken by the floor; 0.15 px of
     # shimmer over 24 px (1.2x the 1 % of the width measured) calls for 9 frames.
     assert 7 <= int(found[2]) <= 14
+    # More frames: the median of each against the first, with the pairs' range.
+    for k in (3, 4):
+        session = add_position_frame(session, "left",
+                                     _png(tmp_path / f"{k}.png", _shimmered(scene, 0.15, k)))
+    check = next(c for c in onsite_checks(session, "left") if c.code == "shimmer")
+    found = re.fullmatch(r"heat shimmer (\S+) px RMS \(left frame 1 against 3 others: median, "
+                         r"(\S+)-(\S+) px\): take (\d+) frames per position .*", check.message)
+    assert found, check.message
+    assert float(found[2]) <= float(found[1]) <= float(found[3])
+    assert float(found[1]) == pytest.approx(0.15, rel=0.2)
 
 
 def test_exif_check_names_the_setting_that_changed(tmp_path: Path) -> None:
@@ -240,7 +301,7 @@ def test_parallax_check_on_rendered_views(baseline_m: float, moved: bool) -> Non
     scene = generate_scene(SynthParams(width=512, height=384, baseline_lr_m=baseline_m), 7)
     left, right = (expose(scene, v, render_view(scene, v)[0]).astype(np.float32)
                    for v in ("left", "right"))
-    failed = _failed(right_checks(map_views(left, right)))
+    failed = _failed(right_checks(map_views(left, right, focal_px=scene.params.focal_px)))
     assert ("parallax" not in failed) == moved
 
 

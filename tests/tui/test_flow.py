@@ -151,9 +151,9 @@ async def test_quit_mid_flow_resumes_where_it_stopped(demo: Demo) -> None:
     assert taken(load_session(demo.session)) == ["left", "right"]
     app = demo_app(demo)
     async with app.run_test(size=SIZE) as pilot:
-        assert "✘" not in await take_position(pilot, app, "back")  # straight to the back
-        await pilot.press("b")
-        assert "parallax" in await take_position(pilot, app, "right")  # checked again
+        assert "parallax" in await take_position(pilot, app, "right")  # where it stopped
+        await pilot.press("n")
+        assert "✘" not in await take_position(pilot, app, "back")
     assert taken(load_session(demo.session)) == ["left", "right", "back"]
 
 
@@ -435,7 +435,10 @@ async def test_the_verdict_shows_stray_readings_as_process_does(demo: Demo) -> N
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen)
-                       and "targets within" in text(app, "#verdict"), "the verdict", 60)
+                       and "not processed yet" in text(app, "#stage"), "processing")
+        await pilot.press("r")  # reopened at processing, it waits to be asked
+        await wait_for(pilot, lambda: "targets within" in text(app, "#verdict"), "the verdict",
+                       60)
         verdict = text(app, "#verdict").replace("\n", " ")
         assert "T1: reading 3 (230.00 m) is far from the others" in verdict
         await pilot.press("q")

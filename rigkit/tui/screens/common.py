@@ -10,11 +10,12 @@ from textual.binding import Binding
 from textual.screen import Screen
 
 from rigkit.capture import Session
+from rigkit.capture.session import FIELD_STEPS
 from rigkit.rig.findings import Finding
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.messages import Goto
 
-STEPS = ("rig", "left", "right", "back", "targets", "process")
+STEPS = FIELD_STEPS
 """The steps of a capture, in order; ``n`` and ``b`` move along them."""
 
 

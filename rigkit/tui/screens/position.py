@@ -16,6 +16,7 @@ from rigkit.capture.actions import remove_frame
 from rigkit.capture.field import frames_at
 from rigkit.rig.findings import Finding
 from rigkit.tui.messages import (
+    CardFrames,
     CheckPosition,
     FrameAdded,
     FrameChecked,
@@ -33,6 +34,7 @@ from rigkit.tui.screens.common import (
     session_of,
     step_after,
 )
+from rigkit.tui.watch import unfiled
 
 CHECKLISTS = {
     "left": (
@@ -62,6 +64,7 @@ class PositionScreen(StepScreen):
         Binding("o", "open_file", "add file"),
         Binding("x", "drop_frame", "drop frame"),
         Binding("a", "place_here", "retake with it", show=False),
+        Binding("c", "from_card", "add from the card", show=False),
     ]
 
     def __init__(self, position: str) -> None:
@@ -73,12 +76,14 @@ class PositionScreen(StepScreen):
         self.held: Path | None = None  # a frame that arrived but does not fit the burst
         self.confirm = False  # n pressed once after a failed check
         self.dropping = ""  # the frame x was pressed once for
+        self.card: list[Path] = []  # frames on the card the session does not hold
 
     def compose(self) -> ComposeResult:
         yield Header()
         with Horizontal():
             with Vertical(id="side"):
                 yield Static(self._checklist(), id="checklist")
+                yield Static("", id="card")
                 yield Static(self._waiting(), id="checks")
             yield Vertical(id="preview")
         yield Input(placeholder="path of a frame file, then Enter (Esc: cancel)", id="path")
@@ -89,14 +94,43 @@ class PositionScreen(StepScreen):
         items = [item.format(c_lb=c_lb) for item in CHECKLISTS[self.position]]
         return f"[b]{self.position.upper()} position[/]\n" + "\n".join(f"• {i}" for i in items)
 
-    def _waiting(self) -> str:
+    def _folder(self) -> Path | None:
         app = host(self)
-        folder = app.config.demo.card if app.config.demo else app.config.watch
+        return app.config.demo.card if app.config.demo else app.config.watch
+
+    def _waiting(self) -> str:
+        folder = self._folder()
         source = f"watching {folder}" if folder else "no folder watched"
         return f"{source}\nwaiting for the {self.position} frame (o: add a file)"
 
+    @work(thread=True, exclusive=True, group="card")
+    def _look_at_card(self) -> None:
+        """List the card's frames the session does not hold (card I/O: a worker)."""
+        folder = self._folder()
+        if folder is not None and folder.is_dir():
+            self.post_message(CardFrames(unfiled(folder, session_of(self))))
+
+    def on_card_frames(self, message: CardFrames) -> None:
+        self.card = message.paths
+        card = self.query_one("#card", Static)
+        card.display = bool(self.card)
+        if self.card:
+            names = [p.name for p in self.card]
+            shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3
+                                            else "")
+            card.update(f"[b $warning]{len(names)} on the card, not in the session:[/] "
+                        f"{escape(shown)} · [b]c[/]: add {escape(names[0])} here")
+
+    def action_from_card(self) -> None:
+        """Add the oldest frame the card holds and the session does not, to this
+        position, as if it had just arrived."""
+        if self.card:
+            self.post_message(IngestFile(self.card.pop(0), self.position))
+
     def on_mount(self) -> None:
         self.query_one("#path", Input).display = False
+        self.query_one("#card", Static).display = False
+        self._look_at_card()
         session = session_of(self)
         app = host(self)
         if frames_at(session, self.position):
@@ -124,10 +158,12 @@ class PositionScreen(StepScreen):
         if message.position == self.position:
             self.query_one("#checks", Static).update(
                 f"[b $error]✘ {escape(message.reason)}[/]\n{self._shown}")
+            self._look_at_card()
 
     def on_frame_checked(self, message: FrameChecked) -> None:
         if message.position == self.position:
             self.show_checks(message.checks, message.image)
+            self._look_at_card()
 
     def on_frame_held(self, message: FrameHeld) -> None:
         """A frame that does not fit this position's burst: ask where it goes."""
@@ -155,6 +191,8 @@ class PositionScreen(StepScreen):
         self._shown = f"frame {Path(frames[-1].file).name}{burst}\n{check_lines(checks)}{hint}"
         self.query_one("#checks", Static).update(self._shown)
         preview = self.query_one("#preview", Vertical)
+        if not preview.is_attached:  # the step was left while its check ran
+            return
         preview.remove_children()
         preview.border_title = "the frame's centre"
         preview.mount(preview_widget(central(image), host(self).config.graphics))
@@ -167,7 +205,10 @@ class PositionScreen(StepScreen):
     def on_input_submitted(self, event: Input.Submitted) -> None:
         self.key_escape()
         if event.value.strip():
-            self.post_message(IngestFile(Path(event.value.strip()).expanduser(), self.position))
+            path = Path(event.value.strip()).expanduser()
+            self.query_one("#checks", Static).update(  # no earlier file's word stays up
+                f"adding {escape(path.name)} ...\n{self._shown}")
+            self.post_message(IngestFile(path, self.position))
         event.input.value = ""
 
     def key_escape(self) -> None:
@@ -177,6 +218,7 @@ class PositionScreen(StepScreen):
         if self.held is not None:
             self.held = None
             self.query_one("#checks", Static).update(self._shown)
+            self._look_at_card()
 
     def action_place_here(self) -> None:
         """Start this position again with the held frame (the earlier ones stay in raw/)."""

@@ -60,11 +60,13 @@ class ProcessScreen(ExportingScreen):
         session = session_of(self)
         rows = latest_run(read_rows(session.path / "comparisons.csv")) \
             if (session.path / "comparisons.csv").is_file() else []
-        if self.resume and rows and (session.path / RESULTS_DIR / "depth.npy").is_file():
+        if not self.resume:
+            self.action_run()
+        elif rows and (session.path / RESULTS_DIR / "depth.npy").is_file():
             self._show_results(rows)
             self.query_one("#stage", Static).update("latest run shown; r: process again")
-        else:
-            self.action_run()
+        else:  # reopened here: processing waits to be asked for
+            self.query_one("#stage", Static).update("not processed yet; r: process")
 
     def action_run(self) -> None:
         self.query_one("#stage", Static).update("processing ...")

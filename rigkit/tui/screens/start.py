@@ -11,7 +11,7 @@ from textual.widgets import DataTable, Footer, Header, Input, Static
 
 from rigkit.capture import is_session, load_session
 from rigkit.capture.actions import create_session_in
-from rigkit.capture.field import frames_at, next_step
+from rigkit.capture.field import frames_at, resume_step
 from rigkit.errors import RigkitError
 from rigkit.tui.messages import OpenSession
 from rigkit.tui.screens.common import escape, host
@@ -36,7 +36,7 @@ class StartScreen(Screen[None]):
 
     def on_mount(self) -> None:
         table = self.query_one(DataTable)
-        table.add_columns("session", "next step", "frames", "targets")
+        table.add_columns("session", "resumes at", "frames", "targets")
         capture = host(self).config.capture
         folders = sorted(p for p in capture.iterdir() if is_session(p)) if capture.is_dir() else []
         for folder in folders:
@@ -46,7 +46,7 @@ class StartScreen(Screen[None]):
                 table.add_row(folder.name, "unreadable", "", "", key=str(folder))
                 continue
             frames = sum(len(frames_at(session, p)) for p in ("left", "right", "back"))
-            table.add_row(session.name, next_step(session), str(frames),
+            table.add_row(session.name, resume_step(session), str(frames),
                           str(len(session.targets)), key=str(folder))
 
     def key_escape(self) -> None:

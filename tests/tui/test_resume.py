@@ -1,0 +1,96 @@
+"""Pilot tests of ``rigkit field`` reopened on a session (issue 37, item 4): it opens at
+the step where the operator stopped, never runs processing by itself, and offers the
+card's frames that the session does not hold."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from rigkit.capture import LaserReading, Session, Target, create_session, load_session
+from rigkit.capture.field import add_position_frame, frames_at, resume_step
+from rigkit.capture.positioning import set_field_step
+from rigkit.capture.session import RESULTS_DIR, save_session
+from rigkit.synth.demo import Demo
+from rigkit.tui.app import FieldApp
+from rigkit.tui.config import FieldConfig
+from rigkit.tui.screens import PositionScreen, ProcessScreen
+from tests.tui.conftest import SETTLE_S, synchronous, text, wait_for, write_frame
+from tests.tui.test_flow import SIZE, take_position
+
+READING = LaserReading(slope_distance_m=200.0, time_utc="2026-11-26T10:00:00Z",
+                       source="manual")
+
+
+def framed(demo: Demo, name: str, reading: bool = True) -> Session:
+    """A session with the demo's three frames and, with ``reading``, a target with a
+    reading: one the capture order alone would send to processing."""
+    session = create_session(demo.capture / name, demo.rig)
+    for position in ("left", "right", "back"):
+        session = add_position_frame(session, position, demo.scene / f"{position}.png")
+    if reading:
+        target = Target(name="T1", pixel=(190.0, 140.0), window_px=9, readings=(READING,))
+        save_session(replace(load_session(session.path), targets=(target,)))
+    return load_session(session.path)
+
+
+def app_on(demo: Demo, session: Path, watch: Path | None = None) -> FieldApp:
+    return FieldApp(FieldConfig(capture=demo.capture, session=session, watch=watch,
+                                graphics=False, settle_s=SETTLE_S))
+
+
+@synchronous
+async def test_quit_while_retaking_the_right_burst_reopens_at_right(demo: Demo) -> None:
+    """Before: a session whose positions all had frames and a target a reading reopened
+    straight into processing, whatever step the operator had quit on."""
+    session = framed(demo, "retaking")
+    set_field_step(session.path, "right")
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:
+        assert "parallax" in await take_position(pilot, app, "right")
+        await pilot.press("n")
+        await wait_for(pilot, lambda: app.screen.position == "back", "the back screen")
+        await pilot.press("q")
+    assert load_session(session.path).field_step == "back"  # where the next launch opens
+    assert not (session.path / RESULTS_DIR).exists()  # nothing was processed
+
+
+@synchronous
+async def test_reopened_at_processing_it_waits_to_be_asked(demo: Demo) -> None:
+    session = framed(demo, "at-process")
+    set_field_step(session.path, "process")
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen), "processing")
+        await pilot.pause(0.3)
+        assert "not processed yet; r: process" in text(app, "#stage")
+    assert not (session.path / RESULTS_DIR).exists()
+
+
+def test_resume_step_never_opens_a_step_whose_frames_are_missing(demo: Demo) -> None:
+    session = create_session(demo.capture / "bare", demo.rig)
+    assert resume_step(session) == "rig"  # never opened, nothing taken
+    session = add_position_frame(session, "left", demo.scene / "left.png")
+    assert resume_step(session) == "right"
+    for step, expected in (("left", "left"), ("targets", "right"), ("process", "right")):
+        assert resume_step(set_field_step(session.path, step)) == expected
+
+
+@synchronous
+async def test_frames_left_on_the_card_are_offered_again(demo: Demo) -> None:
+    """Before: a frame that reached the card while the app was closed, or one left there
+    with Esc, was never offered again and nothing said so."""
+    session = create_session(demo.capture / "card", demo.rig)
+    write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")  # while closed
+    app = app_on(demo, session.path, watch=demo.card)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("n")
+        await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
+                       and "DSCN0001.PNG" in text(app, "#card"), "the card's frame offered")
+        assert "1 on the card, not in the session" in text(app, "#card")
+        await pilot.press("c")
+        assert "✘" not in await take_position(pilot, app, "left")
+        await wait_for(pilot, lambda: not app.screen.query_one("#card").display,
+                       "the offer gone")
+    assert [Path(f.file).name for f in frames_at(load_session(session.path), "left")] == \
+        ["DSCN0001.PNG"]
