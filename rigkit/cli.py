@@ -8,14 +8,15 @@ import importlib
 import logging
 import sys
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 from rigkit import __version__
 from rigkit.core.memory import tune_for_images
 from rigkit.core.signals import Terminated
 from rigkit.errors import RigkitError, environment_message
 
-# Subcommand modules under rigkit.commands, in the order --help lists them.
+# Subcommand modules under rigkit.commands, in the order --help lists them. Each holds
+# only its arguments; what runs a command is imported when it runs (_runner).
 COMMANDS: tuple[str, ...] = (
     "depth",
     "synth",
@@ -54,7 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     tune_for_images()  # freed image-sized arrays reused, no huge-page stalls: ~1.4 s of a triple
     try:
         with _quiet_libraries():
-            code: int = args.func(args)
+            code: int = _runner(args.runner)(args)
     except RigkitError as exc:
         print(f"rigkit {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -68,6 +69,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
         return 2
     return code
+
+
+def _runner(path: str) -> Callable[[argparse.Namespace], int]:
+    """The function a command's arguments name as ``module:function``
+    (:mod:`rigkit.commands`), imported now that the command runs."""
+    module, _, function = path.partition(":")
+    return getattr(importlib.import_module(module), function)
 
 
 def _printable_names() -> None:

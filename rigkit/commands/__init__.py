@@ -1,7 +1,14 @@
-"""CLI subcommands: each module exposes ``register(subparsers)``.
+"""CLI subcommands, each in two modules.
 
-A module's ``register`` adds one subparser and sets ``func`` to a callable
-``(argparse.Namespace) -> int`` that returns the exit code.
+``NAME.py`` declares a command's arguments, help and examples: its
+``register(subparsers)`` adds one subparser and sets ``runner`` to the dotted path,
+``"rigkit.commands.NAME_run:function"``, of the function ``(argparse.Namespace) -> int``
+that runs it and returns the exit code. ``rigkit --help``, ``rigkit COMMAND --help`` and
+a mistyped command build the whole parser, so ``NAME.py`` imports nothing but the
+standard library and this package's argument modules. ``NAME_run.py`` is the code, free
+to import what it needs: ``rigkit.cli`` imports it only when its command runs. A value
+the help shows that lives in a heavy module (a default, a list of choices) is repeated
+in ``NAME.py``, and tests/commands/test_loading.py holds each copy to its original.
 """
 
 from __future__ import annotations

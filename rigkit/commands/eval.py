@@ -33,21 +33,4 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="end with one line per scene saying whether it meets the goal "
                    "(>= 95 %% of pixels under 1 %%, |bias| <= 0.3 %%, every laser target "
                    "within 1 %%); exit 1 where one does not")
-    p.set_defaults(func=run)
-
-
-def run(args: argparse.Namespace) -> int:
-    from rigkit.synth.evaluate import evaluate_scenes, format_table, goal_line, write_csv
-
-    rows = evaluate_scenes(args.scenes, args.depth_dir)
-    print(format_table(rows))
-    if args.csv:
-        write_csv(rows, args.csv)
-        print(f"wrote {args.csv}")
-    failed = any(m.failed for m in rows)
-    if args.goal:
-        for m, scene in zip(rows, args.scenes, strict=True):
-            met, line = goal_line(m, scene)
-            print(line)
-            failed |= not met
-    return 1 if failed else 0
+    p.set_defaults(runner="rigkit.commands.eval_run:run")

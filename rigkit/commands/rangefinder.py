@@ -3,25 +3,39 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
-import sys
-import time
-from typing import TextIO
 
 from rigkit.commands import count
-from rigkit.errors import InputError
-from rigkit.rangefinder import (
-    DEFAULT_TIMEOUT_S,
-    PROTOCOLS,
-    Rangefinder,
-    Reading,
-    open_rangefinder,
-)
-from rigkit.rangefinder.driver import ReadTimeout
-from rigkit.rangefinder.protocols import default_protocol
-from rigkit.rangefinder.sim import SIM_OPTIONS, PtySimulator, parse_sim_url
+
+# What --help shows of rigkit.rangefinder, repeated here so that building the parser
+# does not import pyserial and the drivers (tests/commands/test_loading.py holds the
+# copies to the originals): the protocols (PROTOCOLS) with their default baud rates,
+# the driver's DEFAULT_TIMEOUT_S and the simulator's options (rigkit.rangefinder.sim).
+DEFAULT_BAUDS = {"trupulse": 4800, "vectronix": 115200}
+DEFAULT_TIMEOUT_S = 30.0
+SIM_OPTIONS: dict[str, str] = {
+    "distance": "true slope distance to the target in metres (default 302)",
+    "lat": "gps: latitude in degrees, north positive (default 46.5)",
+    "lon": "gps: longitude in degrees, east positive (default 7.5)",
+    "height": "gps: height above mean sea level in metres (default 500)",
+    "inclination": "trupulse: inclination in degrees, positive up (default 1.2)",
+    "azimuth": "trupulse: azimuth in degrees (default 47.3)",
+    "unit": "trupulse: unit the device sends, M, F or Y (default M)",
+    "interval": "trupulse: seconds between the simulated user's shots, 0 = only on $GO; "
+    "gps: seconds between fixes (default 1)",
+    "noise": "1-sigma range noise in metres; gps: 1-sigma horizontal position noise, m "
+    "(default 0)",
+    "low_quality": "trupulse: probability a shot is flagged low-quality (default 0)",
+    "miss": "probability a shot finds no target (default 0)",
+    "other": "trupulse, gps: probability of another sentence before a shot or fix "
+    "(default 0)",
+    "nofix": "gps: GGA sentences without a fix before the first fix (default 0)",
+    "garbage": "probability of line noise and a cut-off sentence before a frame (default 0)",
+    "bad_checksum": "probability a frame is sent with a wrong checksum (default 0)",
+    "silent": "1 = the device never sends anything (default 0)",
+    "disconnect_after": "pull the cable halfway through frame N+1 (default: never)",
+    "seed": "random seed (default 0)",
+}
 
 READ_EXAMPLE = """\
 examples:
@@ -77,10 +91,10 @@ def _add_port_options(parser: argparse.ArgumentParser, *, timeout_help: str) -> 
     )
     parser.add_argument(
         "--protocol",
-        choices=sorted(PROTOCOLS),
+        choices=sorted(DEFAULT_BAUDS),
         help="default: the --rig profile's, else trupulse",
     )
-    defaults = ", ".join(f"{spec.name} {spec.default_baud}" for spec in PROTOCOLS.values())
+    defaults = ", ".join(f"{name} {baud}" for name, baud in DEFAULT_BAUDS.items())
     parser.add_argument(
         "--baud", type=int, metavar="N", help=f"default: the --rig profile's, else {defaults}"
     )
@@ -127,7 +141,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     _add_port_options(
         read, timeout_help=f"seconds to wait for the reading (default {DEFAULT_TIMEOUT_S:g})"
     )
-    read.set_defaults(func=_read)
+    read.set_defaults(runner="rigkit.commands.rangefinder_run:run_read")
 
     log = sub.add_parser(
         "log",
@@ -148,7 +162,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="S",
         help="seconds between requests when the computer fires the device (default 1)",
     )
-    log.set_defaults(func=_log)
+    log.set_defaults(runner="rigkit.commands.rangefinder_run:run_log")
 
     simulate = sub.add_parser(
         "simulate",
@@ -165,156 +179,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="SIM_URL",
         help="sim://trupulse or sim://vectronix with ?key=value options (default sim://trupulse)",
     )
-    simulate.set_defaults(func=_simulate)
+    simulate.set_defaults(runner="rigkit.commands.rangefinder_run:run_simulate")
 
 
 def _simulator_options() -> str:
     width = max(len(name) for name in SIM_OPTIONS)
     lines = [f"  {name:<{width}}  {text}" for name, text in SIM_OPTIONS.items()]
     return "simulator options:\n" + "\n".join(lines) + "\n"
-
-
-def _connection(args: argparse.Namespace) -> tuple[str, str, int | None]:
-    """Port, protocol and baud from the flags, falling back to the --rig profile."""
-    port, protocol, baud = args.port, args.protocol, args.baud
-    if args.rig is not None:
-        from rigkit.rig import load_rig
-
-        spec = load_rig(args.rig).rangefinder
-        if spec is None:
-            raise InputError(f"{args.rig}: the rig profile has no rangefinder section")
-        if protocol is None:
-            if spec.protocol not in PROTOCOLS:
-                raise InputError(
-                    f"{args.rig}: rangefinder.protocol {spec.protocol!r} is not read over "
-                    f"serial (rigkit reads {', '.join(sorted(PROTOCOLS))}); pass --protocol"
-                )
-            protocol = spec.protocol
-        port = spec.port if port is None else port
-        baud = spec.baud if baud is None else baud
-    if port is None:
-        raise InputError("no port: pass --port URL (or --rig with a rangefinder.port)")
-    return port, protocol or default_protocol(port), baud
-
-
-def _open(args: argparse.Namespace, timeout: float) -> Rangefinder:
-    port, protocol, baud = _connection(args)
-    return open_rangefinder(
-        port,
-        protocol,
-        baud=baud,
-        timeout=timeout,
-        log_path=args.raw_log,
-        bytesize=args.bytesize,
-        parity=args.parity,
-        stopbits=args.stopbits,
-    )
-
-
-def _format(reading: Reading) -> str:
-    parts = [f"slope {reading.slope_distance_m:.2f} m"]
-    if reading.horizontal_distance_m is not None:
-        parts.append(f"horizontal {reading.horizontal_distance_m:.2f} m")
-    if reading.inclination_deg is not None:
-        parts.append(f"inclination {reading.inclination_deg:+.2f} deg")
-    if reading.azimuth_deg is not None:
-        parts.append(f"azimuth {reading.azimuth_deg:.2f} deg")
-    if len(reading.targets_m) > 1:
-        others = ", ".join(f"{t:.2f}" for t in reading.targets_m[1:])
-        parts.append(f"other targets {others} m")
-    notes = [f"sent in {reading.unit}"]
-    if reading.low_quality:
-        notes.append("low-quality target")
-    return ", ".join(parts) + f" ({'; '.join(notes)})"
-
-
-def _emit(reading: Reading, as_json: bool, out: TextIO) -> None:
-    line = json.dumps(reading.to_json_dict()) if as_json else _format(reading)
-    print(line, file=out, flush=True)
-
-
-def _read(args: argparse.Namespace) -> int:
-    timeout = DEFAULT_TIMEOUT_S if args.timeout is None else args.timeout
-    with _open(args, timeout) as rangefinder:
-        reading = rangefinder.read(trigger=True if args.trigger else None)
-    _emit(reading, args.json, sys.stdout)
-    return 0
-
-
-QUIET_NOTE_S = 10.0
-"""Without --timeout, ``log`` says every this many seconds that nothing has come."""
-
-
-def _next_reading(rangefinder: Rangefinder, args: argparse.Namespace) -> Reading:
-    """The next reading; without --timeout, waiting for ever but saying every
-    QUIET_NOTE_S what has arrived meanwhile (a wrong --protocol shows as frames that
-    are never readings)."""
-    trigger = True if args.trigger else None
-    if args.timeout is not None:
-        return rangefinder.read(trigger=trigger)
-    while True:
-        before = rangefinder.stats
-        try:
-            return rangefinder.read(timeout=QUIET_NOTE_S, trigger=trigger)
-        except ReadTimeout:
-            seen = rangefinder.stats.since(before)
-            hint = (f": not {rangefinder.protocol.name}? (--protocol)" if seen.frames
-                    else " (fire the laser, or check the cable and --baud)")
-            print(f"no reading in {QUIET_NOTE_S:g} s ({seen.describe()}){hint}",
-                  file=sys.stderr, flush=True)
-
-
-def _log(args: argparse.Namespace) -> int:
-    timeout = math.inf if args.timeout is None else args.timeout
-    count = 0
-    with _open(args, timeout) as rangefinder:
-        spec = rangefinder.protocol
-        requested = args.trigger or spec.request_by_default
-        if requested and args.interval < spec.min_request_interval_s:
-            raise InputError(
-                f"--interval {args.interval:g} is too short for {spec.name}: requests must "
-                f"be at least {spec.min_request_interval_s:g} s apart"
-            )
-        try:
-            output = open(args.output, "a", encoding="utf-8")
-        except OSError as exc:
-            raise InputError(f"cannot append to {args.output}: {exc.strerror}") from None
-        with output:
-            try:
-                while args.count is None or count < args.count:
-                    started = time.monotonic()
-                    reading = _next_reading(rangefinder, args)
-                    output.write(json.dumps(reading.to_json_dict()) + "\n")
-                    output.flush()
-                    os.fsync(output.fileno())
-                    count += 1
-                    _emit(reading, args.json, sys.stdout)
-                    if requested and (args.count is None or count < args.count):
-                        time.sleep(max(0.0, args.interval - (time.monotonic() - started)))
-            except KeyboardInterrupt:
-                pass
-        noun = "reading" if count == 1 else "readings"
-        print(
-            f"logged {count} {noun} to {args.output} (line: {rangefinder.stats.describe()})",
-            file=sys.stderr,
-        )
-    return 0
-
-
-def _simulate(args: argparse.Namespace) -> int:
-    config = parse_sim_url(args.url)
-    with PtySimulator(config) as simulator:
-        print(simulator.path, flush=True)
-        print(
-            f"simulating {args.url} on {simulator.path}; try: rigkit rangefinder read "
-            f"--port {simulator.path} --protocol {config.device}  (Ctrl-C to stop)",
-            file=sys.stderr,
-            flush=True,
-        )
-        try:
-            while simulator.running:
-                simulator.wait(0.5)
-        except KeyboardInterrupt:
-            return 0
-    print("simulated device disconnected", file=sys.stderr)
-    return 0

@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from pathlib import Path
-from typing import Any
 
 from rigkit.commands import count
 from rigkit.commands.session_position import register_set_position, register_set_rig
@@ -42,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     new.add_argument("--rig", type=Path, required=True, help="rig profile YAML (copied in)")
     new.add_argument("--operator", default="", help="who captured it")
     new.add_argument("--notes", default="", help="free text: site, weather, anything")
-    new.set_defaults(func=run_new)
+    new.set_defaults(runner="rigkit.commands.session_run:run_new")
 
     frame = actions.add_parser("add-frame", help="copy a left/right/back frame into raw/")
     frame.add_argument("session", type=Path)
@@ -54,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     mode.add_argument("--burst", action="store_true",
                       help="add to the position's burst: several frames, median-stacked "
                       "against heat shimmer when processed (docs/sessions.md)")
-    frame.set_defaults(func=run_add_frame)
+    frame.set_defaults(runner="rigkit.commands.session_run:run_add_frame")
 
     target = actions.add_parser("add-target", help="a pixel in the left image and its range")
     target.add_argument("session", type=Path)
@@ -80,19 +77,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     target.add_argument("--azimuth", type=float, help="azimuth of typed ranges, deg clockwise "
                         "from north (true or magnetic: the rig profile's rangefinder.azimuth)")
     target.add_argument("--note", default="", help="what the target is")
-    target.set_defaults(func=run_add_target)
+    target.set_defaults(runner="rigkit.commands.session_run:run_add_target")
 
     remove = actions.add_parser("remove-reading", help="take back one laser reading")
     remove.add_argument("session", type=Path)
     remove.add_argument("--target", required=True, help="the target's name")
     remove.add_argument("--reading", type=count, required=True,
                         help="which reading, 1 for the first (as `session show` lists them)")
-    remove.set_defaults(func=run_remove_reading)
+    remove.set_defaults(runner="rigkit.commands.session_run:run_remove_reading")
 
     drop = actions.add_parser("remove-target", help="take back a target with its readings")
     drop.add_argument("session", type=Path)
     drop.add_argument("--target", required=True, help="the target's name")
-    drop.set_defaults(func=run_remove_target)
+    drop.set_defaults(runner="rigkit.commands.session_run:run_remove_target")
 
     unframe = actions.add_parser("remove-frame",
                                  help="take a frame out of the session (its file stays in raw/)")
@@ -100,264 +97,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     unframe.add_argument("--position", required=True, choices=("left", "right", "back"))
     unframe.add_argument("--frame", type=count,
                          help="which frame of the burst, 1 for the first (default: the newest)")
-    unframe.set_defaults(func=run_remove_frame)
+    unframe.set_defaults(runner="rigkit.commands.session_run:run_remove_frame")
 
     show = actions.add_parser("show", help="print a session: frames, targets, last results")
     show.add_argument("session", type=Path)
     show.add_argument("--json", action="store_true", help="machine-readable output")
-    show.set_defaults(func=run_show)
+    show.set_defaults(runner="rigkit.commands.session_run:run_show")
     register_set_position(actions)
     register_set_rig(actions)
-
-
-def run_new(args: argparse.Namespace) -> int:
-    from rigkit.capture import create_session
-
-    session = create_session(args.session, args.rig, operator=args.operator, notes=args.notes)
-    print(f"created session {session.path} (rig {session.rig().name}); next: add the left, "
-          "right and back frames with `rigkit session add-frame`")
-    return 0
-
-
-def run_add_frame(args: argparse.Namespace) -> int:
-    from rigkit.capture import add_frame, load_session
-
-    session = add_frame(load_session(args.session), args.position, args.file,
-                        replace_existing=args.replace, burst=args.burst)
-    burst = session.bursts[args.position]
-    frame = burst[-1]
-    width, height = frame.size_px
-    count = f", frame {len(burst)} of the burst" if len(burst) > 1 else ""
-    print(f"{args.position}: {frame.file} ({width}x{height} px, sha256 {frame.sha256[:12]}"
-          f"{count})")
-    missing = [p for p in ("left", "right", "back") if p not in session.frames]
-    if missing:
-        print("still needed: " + ", ".join(missing))
-    else:
-        _print_exif_findings(session)
-    return 0
-
-
-def _print_exif_findings(session: Any) -> None:
-    from rigkit.capture.checks import check_capture
-
-    paths = [session.frame_path(p) for p in ("left", "right", "back")]
-    findings = check_capture(session.rig(), paths)
-    for finding in findings:
-        print(f"warning: {finding.message}")
-    if not findings:
-        print("all three frames present; EXIF agrees with the rig profile")
-
-
-def run_add_target(args: argparse.Namespace) -> int:
-    from rigkit.capture import add_target, load_session
-    from rigkit.errors import InputError
-
-    session = load_session(args.session)
-    name = args.name or _next_name(session)
-    stopped = None
-    if args.range_m is not None:
-        readings = _typed_readings(session, args.range_m, args.inclination, args.azimuth)
-    else:
-        readings, stopped = _device_readings(session, args)
-    session = add_target(session, name, tuple(args.pixel), window_px=args.window,
-                         readings=readings, note=args.note)
-    target = session.target(name)
-    ranges = ", ".join(f"{r.slope_distance_m:.2f}" for r in target.readings)
-    print(f"target {name} at ({target.pixel[0]:g}, {target.pixel[1]:g}): "
-          f"{len(target.readings)} reading(s) [{ranges}] m")
-    if stopped is not None:
-        raise InputError(stopped)
-    return 0
-
-
-def _next_name(session: Any) -> str:
-    taken = {t.name for t in session.targets}
-    n = 1
-    while f"T{n}" in taken:
-        n += 1
-    return f"T{n}"
-
-
-def _typed_readings(session: Any, ranges: list[str], inclination: float | None,
-                    azimuth: float | None = None) -> list[Any]:
-    from rigkit.capture import LaserReading, utc_now
-    from rigkit.capture.tripod import check_direction
-    from rigkit.rangefinder.ranging import parse_typed_range
-
-    check_direction(azimuth, inclination)
-    return [LaserReading(parse_typed_range(r, session.rig()), utc_now(), "manual", inclination,
-                         azimuth_deg=azimuth)
-            for r in ranges]
-
-
-def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any], str | None]:
-    """The readings of ``--shots`` shots from the device, and why it stopped early (None
-    when it did not): readings received before a lost device are kept, not thrown away."""
-    from rigkit.capture.field import reading_from_device
-    from rigkit.errors import InputError, RigkitError, environment_message
-    from rigkit.rangefinder import open_rangefinder
-    from rigkit.rangefinder.protocols import default_protocol
-
-    spec = session.rig().rangefinder
-    url = args.device
-    if url == "rig":
-        if spec is None or spec.port is None:
-            raise InputError("--device: the rig profile names no rangefinder port; give the "
-                             "port, e.g. --device /dev/ttyUSB0")
-        url = spec.port
-    protocol = args.protocol or (spec.protocol if spec and spec.protocol != "manual"
-                                 else default_protocol(url))
-    if args.shots < 1:
-        raise InputError(f"--shots {args.shots}: expected at least 1")
-    readings: list[Any] = []
-    baud = spec.baud if spec is not None and url == spec.port else None
-    try:
-        with open_rangefinder(url, protocol, baud=baud, timeout=args.timeout) as device:
-            for shot in range(args.shots):
-                print(f"waiting for reading {shot + 1}/{args.shots} from {device.name} ...",
-                      flush=True)
-                readings.append(reading_from_device(device.read(), f"{protocol}:{url}"))
-    except (RigkitError, OSError) as exc:
-        if not readings:
-            raise
-        reason = str(exc) if isinstance(exc, RigkitError) else environment_message(exc)
-        return readings, (f"the rangefinder stopped at reading {len(readings) + 1} of "
-                          f"{args.shots} ({reason}); the {len(readings)} received are kept")
-    return readings, None
-
-
-def run_remove_reading(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_reading
-
-    session = remove_reading(load_session(args.session), args.target, args.reading)
-    left = ", ".join(f"{r.slope_distance_m:.2f}" for r in session.target(args.target).readings)
-    print(f"removed reading {args.reading} of {args.target}; left: [{left or 'none'}] m")
-    return 0
-
-
-def run_remove_target(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_target
-
-    remove_target(load_session(args.session), args.target)
-    print(f"removed target {args.target}")
-    return 0
-
-
-def run_remove_frame(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_frame
-
-    session = remove_frame(load_session(args.session), args.position, args.frame)
-    left = len(session.bursts.get(args.position, ()))
-    print(f"removed a {args.position} frame ({left} left; its file stays in raw/)")
-    return 0
-
-
-def run_show(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import changing
-    from rigkit.errors import InputError
-
-    try:  # repair what an interrupted command left, where the session can be changed
-        with changing(args.session, "show", wait_s=0.0) as session:
-            pass
-    except InputError as exc:  # busy, read-only or hostile: say why, show it as it is
-        print(f"warning: not repaired: {exc}", file=sys.stderr)
-        session = load_session(args.session)
-    if args.json:
-        print(json.dumps(_show_data(session), indent=2))
-    else:
-        print(_show_text(session))
-    return 0
-
-
-def _processed(session: Any, stale: str | None) -> str:
-    """"processed (run ...)" where the results show the session as it is, else "ready
-    to process" (what makes them stale is said below it)."""
-    from rigkit.capture.session import run_metadata
-
-    run = (run_metadata(session.path) or {}).get("run_id") if stale is None else None
-    if run is None:
-        return "ready to process"
-    return f"processed (run {run}); rigkit process again to redo it"
-
-
-def _show_data(session: Any) -> dict[str, Any]:
-    from dataclasses import asdict
-
-    from rigkit.capture import frame_problems, session_to_data
-
-    data = session_to_data(session)
-    data["problems"] = frame_problems(session)
-    data["last_run"] = [asdict(row) for row in _last_rows(session)]
-    return data
-
-
-def _last_rows(session: Any) -> list[Any]:
-    import sys
-
-    from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
-
-    log = session.path / LOG_NAME
-    torn: list[str] = []
-    rows = latest_run(read_rows(log, torn)) if log.is_file() else []
-    for problem in torn:
-        print(f"warning: {problem}", file=sys.stderr)
-    return rows
-
-
-def _show_text(session: Any) -> str:
-    from rigkit.capture import POSITIONS, frame_problems
-    from rigkit.capture.actions import stale_results
-    from rigkit.capture.lock import lock_holder
-    from rigkit.capture.session import stray_readings
-
-    lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
-    if session.operator:
-        lines.append(f"  operator {session.operator}")
-    if session.notes:
-        lines.append(f"  notes    {session.notes}")
-    rig = session.rig()
-    lines.append(f"  rig      {rig.name} (from {session.rig_reference}): f {rig.focal_px:.1f} "
-                 f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
-    if session.tripod is not None:
-        t = session.tripod
-        lines.append(f"  tripod   {t.lat_deg:.7f}, {t.lon_deg:.7f}, {t.height_m:.2f} m "
-                     f"({t.source})")
-    lines.append("frames")
-    for position in POSITIONS:
-        burst = session.bursts.get(position, ())
-        if not burst:
-            lines.append(f"  {position:<5}  (missing)")
-        for i, frame in enumerate(burst):
-            exif = frame.exif
-            shot = ", ".join(str(exif[k]) for k in ("model", "datetime_original") if k in exif)
-            label = position if i == 0 else ""
-            lines.append(f"  {label:<5}  {frame.file}  {frame.size_px[0]}x{frame.size_px[1]}  "
-                         f"sha256 {frame.sha256[:12]}  {shot}".rstrip())
-    lines.append(f"targets ({len(session.targets)})")
-    for target in session.targets:
-        strays = stray_readings(target)
-        ranges = ", ".join(f"{i + 1}: {r.slope_distance_m:.2f}" + (" (stray)" if i in strays
-                                                                    else "")
-                           for i, r in enumerate(target.readings)) or "none"
-        lines.append(f"  {target.name:<8} pixel ({target.pixel[0]:g}, {target.pixel[1]:g}) "
-                     f"window {target.window_px}  laser [{ranges}] m  {target.note}".rstrip())
-    problems = frame_problems(session)
-    stale = stale_results(session)
-    lines.append("status   " + ("; ".join(problems) if problems else _processed(session, stale)))
-    for note in filter(None, (lock_holder(session.path), stale)):
-        lines.append(f"         {note}")
-    from rigkit.reporting.verdict import row_label
-
-    rows = _last_rows(session)
-    if rows:
-        lines.append(f"last run {rows[0].run_id}")
-        for row in rows:
-            lines.append(f"  {row.target:<8} laser {row.laser_range_m:9.2f} m  estimate "
-                         f"{row.estimate_range_m:9.2f} m  error {row.error_pct:+6.2f} %  "
-                         f"{row_label(row)}")
-    return "\n".join(lines)

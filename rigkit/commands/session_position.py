@@ -4,9 +4,7 @@ from a GPS), and the rig profile the session is processed with."""
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
-from typing import Any
 
 from rigkit.commands import count
 
@@ -36,7 +34,7 @@ def register_set_position(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--baud", type=int, default=4800, help="GPS baud rate (default 4800)")
     p.add_argument("--timeout", type=float, default=30.0,
                    help="seconds to wait for each GPS fix (default 30)")
-    p.set_defaults(func=run_set_position)
+    p.set_defaults(runner="rigkit.commands.session_position_run:run_set_position")
 
 
 SET_RIG_EXAMPLE = """example:
@@ -55,63 +53,4 @@ def register_set_rig(actions: argparse._SubParsersAction) -> None:
         epilog=SET_RIG_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("session", type=Path)
     p.add_argument("--rig", type=Path, required=True, help="rig profile YAML (copied in)")
-    p.set_defaults(func=run_set_rig)
-
-
-def run_set_rig(args: argparse.Namespace) -> int:
-    from rigkit.capture.positioning import set_rig
-
-    session = set_rig(args.session, args.rig)
-    lb = session.rig().baseline_lb
-    print(f"{session.path}: rig {session.rig().name} (C_lb {lb.value_m:.4f} +- "
-          f"{lb.tolerance_m:.4f} m); process it again for results under it: "
-          f"rigkit process {session.path}")
-    return 0
-
-
-def run_set_position(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.positioning import set_tripod_position
-    from rigkit.errors import InputError
-    from rigkit.export.georef import utm_epsg
-
-    typed = [args.lat, args.lon, args.height_m]
-    if args.gps is not None and any(v is not None for v in typed):
-        raise InputError("give --lat, --lon and --height-m, or --gps, not both")
-    if args.gps is None and any(v is None for v in typed):
-        raise InputError("give all of --lat, --lon and --height-m, or --gps URL")
-    load_session(args.session)  # a clear error for a bad session before a GPS wait
-    position = _from_gps(args) if args.gps is not None else _typed(args)
-    set_tripod_position(args.session, position)
-    print(f"tripod at {position.lat_deg:.7f}, {position.lon_deg:.7f}, "
-          f"{position.height_m:.2f} m ({position.source})")
-    try:
-        utm_epsg(position.lat_deg, position.lon_deg)
-    except InputError as exc:  # recorded all the same: it is where the tripod stood
-        print(f"warning: {exc}: `rigkit export` can place this session's points only in "
-              "the camera frame (--frame camera)", file=sys.stderr)
-    return 0
-
-
-def _typed(args: argparse.Namespace) -> Any:
-    from rigkit.capture import utc_now
-    from rigkit.capture.tripod import TripodPosition
-
-    return TripodPosition(args.lat, args.lon, args.height_m, "manual", utc_now())
-
-
-def _from_gps(args: argparse.Namespace) -> Any:
-    from rigkit.capture import utc_now
-    from rigkit.capture.tripod import TripodPosition
-    from rigkit.rangefinder.framing import escape_bytes
-    from rigkit.rangefinder.gps import mean_position, open_gps
-
-    fixes = []
-    with open_gps(args.gps, baud=args.baud, timeout=args.timeout) as gps:
-        for _ in range(args.fixes):
-            fixes.append(gps.read())
-            print(f"fix {len(fixes)}/{args.fixes}: {fixes[-1].lat_deg:.7f}, "
-                  f"{fixes[-1].lon_deg:.7f}, {fixes[-1].satellites} satellites", flush=True)
-    lat, lon, height = mean_position(fixes)
-    return TripodPosition(lat, lon, height, f"gps:{args.gps}", utc_now(), fixes=len(fixes),
-                          raw=escape_bytes(fixes[-1].raw))
+    p.set_defaults(runner="rigkit.commands.session_position_run:run_set_rig")

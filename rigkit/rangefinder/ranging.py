@@ -21,11 +21,14 @@ The aperture offset is (right, up, forward) in metres, as a rig profile's
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from rigkit.errors import InputError
 from rigkit.rangefinder.framing import FrameError, check_range, parse_decimal
 from rigkit.rangefinder.protocols import PROTOCOLS
-from rigkit.rig.profile import RigProfile
+
+if TYPE_CHECKING:  # annotations only: the rig profile brings the pipeline with it
+    from rigkit.rig.profile import RigProfile
 
 MANUAL_MAX_RANGE_M = 5000.0
 """The longest range accepted when readings are typed in and the rig profile names no

@@ -1,0 +1,148 @@
+"""Running ``rigkit depth`` (its arguments: :mod:`rigkit.commands.depth`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+POSITIONS = ("left", "right", "back")
+
+
+def rig_source(args: argparse.Namespace) -> Any:  # RigProfile | (size -> RigProfile)
+    """The rig: --rig's profile with the flags' values in place of its own, or (without
+    --rig) a function giving the profile that the flags describe for the frames' size.
+    Both are checked as a profile file is (:func:`rigkit.rig.profile.rig_from_data`)."""
+    from rigkit.errors import InputError
+    from rigkit.rig.profile import load_rig, rig_from_data, rig_to_dict
+
+    for flag, unit in (("focal_px", "pixels"), ("baseline_lr", "m"), ("baseline_lb", "m")):
+        value = getattr(args, flag)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(f"--{flag.replace('_', '-')} {value:g}: must be a positive "
+                             f"number of {unit}")
+    if args.rig is not None:
+        profile = load_rig(args.rig)
+        return rig_from_data(_override(rig_to_dict(profile), args), args.rig)
+    missing = [flag for flag in ("focal_px", "baseline_lr", "baseline_lb")
+               if getattr(args, flag) is None]
+    if missing:
+        raise InputError(
+            "missing " + ", ".join("--" + m.replace("_", "-") for m in missing)
+            + ": give --rig PROFILE or --focal-px, --baseline-lr and --baseline-lb"
+        )
+
+    def at_size(size: tuple[int, int]) -> Any:
+        data = {
+            "version": 1,
+            "name": "command line",
+            "camera": {"model": "as given on the command line", "resolution": list(size),
+                       "focal_length": {"px": args.focal_px, "tolerance_fraction": 0.0}},
+            "baselines": {name: {"value_m": value, "tolerance_m": 0.0} for name, value in
+                          (("C_lr", args.baseline_lr), ("C_lb", args.baseline_lb))},
+        }
+        return rig_from_data(_override(data, args), Path("the command line"))
+
+    return at_size
+
+
+def _override(data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+    """Profile data with the command line's values in place of its own."""
+    from rigkit.commands import parse_distortion
+    from rigkit.rig.camera import DISTORTION_TERMS
+
+    cameras = [data["camera"]] if "camera" in data else list(data["cameras"].values())
+    for camera in cameras:
+        if args.focal_px is not None:
+            tolerance = camera["focal_length"]["tolerance_fraction"]
+            camera["focal_length"] = {"px": args.focal_px, "tolerance_fraction": tolerance}
+        if args.distortion is not None:
+            terms = parse_distortion(args.distortion)
+            camera["distortion"] = dict(zip(DISTORTION_TERMS, terms, strict=True))
+        if args.lensfun is not None:
+            camera["distortion"] = _lensfun(args.lensfun)
+    for name, value in (("C_lr", args.baseline_lr), ("C_lb", args.baseline_lb)):
+        if value is not None:
+            data["baselines"][name]["value_m"] = value
+    if args.fixed_lens:
+        data["pipeline"] = {**data.get("pipeline", {}), "distortion_terms": 0}
+    return data
+
+
+def _lensfun(text: str) -> dict[str, Any]:
+    """``--lensfun CAMERA:FOCAL_MM`` as a profile's ``distortion`` mapping."""
+    from rigkit.errors import InputError
+
+    camera, _, focal = text.rpartition(":")
+    try:
+        return {"lensfun": camera, "focal_mm": float(focal)}
+    except ValueError:
+        raise InputError(f"--lensfun {text!r}: expected CAMERA:FOCAL_MM, e.g. "
+                         "'Coolpix P1000:71.9'") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigkit.batch.depthrun import run_depth
+    from rigkit.capture.frames import frame_files
+    from rigkit.core.files import check_writable_folder, write_together
+    from rigkit.core.progress import Progress
+    from rigkit.errors import InputError
+
+    if args.out.suffix != ".npy":
+        raise InputError(f"--out {args.out}: expected a .npy file name")
+    if args.out.is_dir():
+        raise InputError(f"--out {args.out}: a folder; give a file name such as depth.npy")
+    check_writable_folder(args.out.parent, f"--out {args.out}")
+    rig = rig_source(args)
+    bursts = frame_files({pos: getattr(args, pos) for pos in POSITIONS})
+    task = args.left[0].name
+    with Progress("depth", [task], quiet=args.quiet) as progress:
+        run = run_depth(bursts, rig, force=args.force,
+                        progress=lambda stage, f: progress.update(task, f, stage))
+    write_together(args.out.parent, _outputs(run, args.out, args.preview))
+    print(_summary(run, args.out))
+    for warning in run.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    return 0
+
+
+def _outputs(run: Any, out: Path, preview: bool) -> dict[str, Any]:
+    import json
+
+    from rigkit.reporting.previews import colorize, depth_range
+
+    result = run.result
+    files: dict[str, Any] = {
+        out.name: result.depth,
+        f"{out.stem}.sigma.npy": result.sigma,
+        f"{out.stem}.json": json.dumps(run.metadata(), indent=2),
+        f"{out.stem}.grey.png": run.left_grey(),
+        f"{out.stem}.flags.npy": result.flags(),
+    }
+    if preview:
+        lo, hi = depth_range(result.depth)
+        files[f"{out.stem}.png"] = colorize(result.depth, lo, hi, "depth z (m)")
+        files[f"{out.stem}.sigma.png"] = colorize(100 * result.sigma / result.depth, 0.0, 2.0,
+                                                  "1-sigma error (% of depth)")
+    return files
+
+
+def _summary(run: Any, out: Path) -> str:
+    import numpy as np
+
+    result = run.result
+    a, lens = result.ambiguity, result.lens_fit
+    fitted = ""
+    if lens is not None:
+        taken = "" if lens.significant else ", not taken"
+        fitted = f", lens corner {lens.corner_px:+.2f} +- {lens.corner_sigma_px:.2f} px{taken}"
+    height, width = result.depth.shape
+    return (
+        f"wrote {out} ({width}x{height}, "
+        f"density {100 * float(np.isfinite(result.depth).mean()):.1f} %, "
+        f"median depth {result.median_depth_m:.1f} m, "
+        f"offset {a.offset_px:.2f} +- {a.offset_sigma_px:.2f} px{fitted}, "
+        f"{sum(result.timings_s.values()):.1f} s)"
+    )

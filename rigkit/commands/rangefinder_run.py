@@ -1,0 +1,170 @@
+"""Running ``rigkit rangefinder read``, ``log`` and ``simulate`` (their arguments:
+:mod:`rigkit.commands.rangefinder`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from typing import TextIO
+
+from rigkit.errors import InputError
+from rigkit.rangefinder import (
+    DEFAULT_TIMEOUT_S,
+    PROTOCOLS,
+    Rangefinder,
+    Reading,
+    open_rangefinder,
+)
+from rigkit.rangefinder.driver import ReadTimeout
+from rigkit.rangefinder.protocols import default_protocol
+from rigkit.rangefinder.sim import PtySimulator, parse_sim_url
+
+
+def _connection(args: argparse.Namespace) -> tuple[str, str, int | None]:
+    """Port, protocol and baud from the flags, falling back to the --rig profile."""
+    port, protocol, baud = args.port, args.protocol, args.baud
+    if args.rig is not None:
+        from rigkit.rig import load_rig
+
+        spec = load_rig(args.rig).rangefinder
+        if spec is None:
+            raise InputError(f"{args.rig}: the rig profile has no rangefinder section")
+        if protocol is None:
+            if spec.protocol not in PROTOCOLS:
+                raise InputError(
+                    f"{args.rig}: rangefinder.protocol {spec.protocol!r} is not read over "
+                    f"serial (rigkit reads {', '.join(sorted(PROTOCOLS))}); pass --protocol"
+                )
+            protocol = spec.protocol
+        port = spec.port if port is None else port
+        baud = spec.baud if baud is None else baud
+    if port is None:
+        raise InputError("no port: pass --port URL (or --rig with a rangefinder.port)")
+    return port, protocol or default_protocol(port), baud
+
+
+def _open(args: argparse.Namespace, timeout: float) -> Rangefinder:
+    port, protocol, baud = _connection(args)
+    return open_rangefinder(
+        port,
+        protocol,
+        baud=baud,
+        timeout=timeout,
+        log_path=args.raw_log,
+        bytesize=args.bytesize,
+        parity=args.parity,
+        stopbits=args.stopbits,
+    )
+
+
+def _format(reading: Reading) -> str:
+    parts = [f"slope {reading.slope_distance_m:.2f} m"]
+    if reading.horizontal_distance_m is not None:
+        parts.append(f"horizontal {reading.horizontal_distance_m:.2f} m")
+    if reading.inclination_deg is not None:
+        parts.append(f"inclination {reading.inclination_deg:+.2f} deg")
+    if reading.azimuth_deg is not None:
+        parts.append(f"azimuth {reading.azimuth_deg:.2f} deg")
+    if len(reading.targets_m) > 1:
+        others = ", ".join(f"{t:.2f}" for t in reading.targets_m[1:])
+        parts.append(f"other targets {others} m")
+    notes = [f"sent in {reading.unit}"]
+    if reading.low_quality:
+        notes.append("low-quality target")
+    return ", ".join(parts) + f" ({'; '.join(notes)})"
+
+
+def _emit(reading: Reading, as_json: bool, out: TextIO) -> None:
+    line = json.dumps(reading.to_json_dict()) if as_json else _format(reading)
+    print(line, file=out, flush=True)
+
+
+def run_read(args: argparse.Namespace) -> int:
+    timeout = DEFAULT_TIMEOUT_S if args.timeout is None else args.timeout
+    with _open(args, timeout) as rangefinder:
+        reading = rangefinder.read(trigger=True if args.trigger else None)
+    _emit(reading, args.json, sys.stdout)
+    return 0
+
+
+QUIET_NOTE_S = 10.0
+"""Without --timeout, ``log`` says every this many seconds that nothing has come."""
+
+
+def _next_reading(rangefinder: Rangefinder, args: argparse.Namespace) -> Reading:
+    """The next reading; without --timeout, waiting for ever but saying every
+    QUIET_NOTE_S what has arrived meanwhile (a wrong --protocol shows as frames that
+    are never readings)."""
+    trigger = True if args.trigger else None
+    if args.timeout is not None:
+        return rangefinder.read(trigger=trigger)
+    while True:
+        before = rangefinder.stats
+        try:
+            return rangefinder.read(timeout=QUIET_NOTE_S, trigger=trigger)
+        except ReadTimeout:
+            seen = rangefinder.stats.since(before)
+            hint = (f": not {rangefinder.protocol.name}? (--protocol)" if seen.frames
+                    else " (fire the laser, or check the cable and --baud)")
+            print(f"no reading in {QUIET_NOTE_S:g} s ({seen.describe()}){hint}",
+                  file=sys.stderr, flush=True)
+
+
+def run_log(args: argparse.Namespace) -> int:
+    timeout = math.inf if args.timeout is None else args.timeout
+    count = 0
+    with _open(args, timeout) as rangefinder:
+        spec = rangefinder.protocol
+        requested = args.trigger or spec.request_by_default
+        if requested and args.interval < spec.min_request_interval_s:
+            raise InputError(
+                f"--interval {args.interval:g} is too short for {spec.name}: requests must "
+                f"be at least {spec.min_request_interval_s:g} s apart"
+            )
+        try:
+            output = open(args.output, "a", encoding="utf-8")
+        except OSError as exc:
+            raise InputError(f"cannot append to {args.output}: {exc.strerror}") from None
+        with output:
+            try:
+                while args.count is None or count < args.count:
+                    started = time.monotonic()
+                    reading = _next_reading(rangefinder, args)
+                    output.write(json.dumps(reading.to_json_dict()) + "\n")
+                    output.flush()
+                    os.fsync(output.fileno())
+                    count += 1
+                    _emit(reading, args.json, sys.stdout)
+                    if requested and (args.count is None or count < args.count):
+                        time.sleep(max(0.0, args.interval - (time.monotonic() - started)))
+            except KeyboardInterrupt:
+                pass
+        noun = "reading" if count == 1 else "readings"
+        print(
+            f"logged {count} {noun} to {args.output} (line: {rangefinder.stats.describe()})",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    config = parse_sim_url(args.url)
+    with PtySimulator(config) as simulator:
+        print(simulator.path, flush=True)
+        print(
+            f"simulating {args.url} on {simulator.path}; try: rigkit rangefinder read "
+            f"--port {simulator.path} --protocol {config.device}  (Ctrl-C to stop)",
+            file=sys.stderr,
+            flush=True,
+        )
+        try:
+            while simulator.running:
+                simulator.wait(0.5)
+        except KeyboardInterrupt:
+            return 0
+    print("simulated device disconnected", file=sys.stderr)
+    return 0

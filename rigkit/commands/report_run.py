@@ -1,0 +1,79 @@
+"""Running ``rigkit report`` (its arguments: :mod:`rigkit.commands.report`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+#: The plots, by file stem; each is written in every --format.
+PLOTS = ("estimate_vs_laser", "error_vs_range")
+
+
+def _formats(text: str) -> list[str]:
+    from rigkit.errors import InputError
+    from rigkit.reporting.plots import FORMATS
+
+    formats = list(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    unknown = [f for f in formats if f not in FORMATS]
+    if unknown or not formats:
+        raise InputError(f"--format {text}: expected one or more of {', '.join(FORMATS)}")
+    return formats
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigkit.capture.comparisons import csv_text
+    from rigkit.errors import InputError
+    from rigkit.reporting.plots import plot_error_vs_range, plot_estimate_vs_laser, render
+    from rigkit.reporting.scale import session_scale_note
+    from rigkit.reporting.summary import collect, format_text, summarize
+
+    if not args.sessions:
+        raise InputError("no session folders given (e.g. rigkit report capture/field-1 --out DIR)")
+    formats = _formats(args.format)
+    _check_out(args.out, args.sessions)
+    torn: list[str] = []
+    rows = collect(args.sessions, all_runs=args.all_runs, torn=torn)
+    for problem in torn:
+        print(f"warning: {problem}", file=sys.stderr)
+    text = format_text(rows, summarize(rows))
+    notes = [(path, session_scale_note(path)) for path in dict.fromkeys(args.sessions)]
+    text += "".join(f"scale of {path}: {note}\n" for path, note in notes if note)
+    files: dict[str, str | bytes] = {"comparisons.csv": csv_text(rows), "report.txt": text}
+    for stem, plot in zip(PLOTS, (plot_estimate_vs_laser, plot_error_vs_range), strict=True):
+        figure = plot(rows)
+        for fmt in formats:
+            files[f"{stem}.{fmt}"] = render(figure, fmt)
+    _write_all(args.out, files)
+    print(text, end="")
+    print(f"wrote {', '.join(str(args.out / name) for name in files)}")
+    return 0
+
+
+def _check_out(out: Path, sessions: list[Path]) -> None:
+    """--out must be a folder (or not exist yet) and never a session folder: its
+    comparisons.csv would replace the session's log."""
+    from rigkit.errors import InputError
+
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: exists and is not a folder")
+    target = out.resolve()
+    for session in sessions:
+        if session.resolve() == target:
+            raise InputError(f"--out {out}: is a session folder (its log would be replaced)")
+
+
+def _write_all(out: Path, files: dict[str, str | bytes]) -> None:
+    """All report files at once (:func:`rigkit.core.files.write_together`); a folder that
+    cannot be created or written is a one-line error naming --out."""
+    from rigkit.core.files import write_together
+    from rigkit.errors import InputError
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
+    try:
+        write_together(out, files)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write the report ({exc.strerror})") from None

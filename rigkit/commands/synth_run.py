@@ -1,0 +1,131 @@
+"""Running ``rigkit synth`` (its arguments: :mod:`rigkit.commands.synth`)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+
+def _rig_settings(path: Path) -> dict[str, float]:
+    import math
+
+    from rigkit.rig import load_rig
+
+    rig = load_rig(path)
+    w, h = rig.image_size
+    side, up = rig.back_offset_m or (0.0, 0.0)
+    return {
+        "width": w,
+        "height": h,
+        "fov": math.degrees(2 * math.atan(w / 2 / rig.focal_px)),
+        "baseline_lr": rig.baseline_lr.value_m,
+        "baseline_lb": rig.baseline_lb.value_m,
+        "back_up": up,
+        "back_side": side,
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    from rigkit.core.progress import Progress
+    from rigkit.synth import SynthParams, generate_scene
+    from rigkit.synth.io import VIEWS
+
+    d = SynthParams()
+    settings: dict[str, float] = {
+        "width": d.width,
+        "height": d.height,
+        "fov": d.hfov_deg,
+        "baseline_lr": d.baseline_lr_m,
+        "baseline_lb": d.baseline_lb_m,
+        "back_up": d.back_up_m,
+        "back_side": d.back_side_m,
+    }
+    if args.rig is not None:
+        settings.update(_rig_settings(args.rig))
+    settings.update({k: getattr(args, k) for k in settings if getattr(args, k) is not None})
+    params = SynthParams(
+        width=int(settings["width"]),
+        height=int(settings["height"]),
+        hfov_deg=settings["fov"],
+        distance_m=args.distance,
+        baseline_lr_m=settings["baseline_lr"],
+        baseline_lb_m=settings["baseline_lb"],
+        back_up_m=settings["back_up"],
+        back_side_m=settings["back_side"],
+        max_tilt_deg=args.max_tilt,
+        max_roll_deg=args.max_roll,
+        max_pp_offset_px=args.max_pp_offset,
+        relief=args.relief,
+        noise_dn=args.noise,
+    )
+    params = _field_conditions(args, params)
+    scene = generate_scene(params, args.seed)
+    t0 = time.perf_counter()
+    with Progress("synth", VIEWS, quiet=args.quiet) as progress:
+        what = _write(args, scene, progress)
+    print(
+        f"wrote {what} {args.out_dir} ({params.width}x{params.height}, "
+        f"f={params.focal_px:.1f} px, seed {args.seed}) in {time.perf_counter() - t0:.1f} s"
+    )
+    return 0
+
+
+# Flags of the "field conditions" and "a world that moves" groups -> SynthParams fields.
+_CONDITION_FLAGS = {
+    "sky": "sky",
+    "haze": "haze_m",
+    "gain_jitter": "gain_jitter",
+    "offset_jitter": "offset_jitter_dn",
+    "vignetting": "vignetting",
+    "shimmer": "shimmer_px",
+    "shimmer_corr": "shimmer_corr_px",
+    "shimmer_spectrum": "shimmer_spectrum",
+    "shimmer_outer": "shimmer_outer_px",
+    "burst": "burst",
+    "movers": "n_movers",
+    "shadows": "n_shadows",
+    "shadow_drift": "shadow_drift_m",
+    "facades": "n_facades",
+    "backdrop": "backdrop",
+}
+
+
+def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
+    """``params`` with --field's preset and the field and world flags given applied."""
+    from dataclasses import replace
+
+    from rigkit.commands import parse_distortion
+    from rigkit.synth import field_params
+
+    if args.field:
+        params = field_params(params)
+    changes: dict[str, Any] = {
+        name: getattr(args, flag) for flag, name in _CONDITION_FLAGS.items()
+        if getattr(args, flag) is not None
+    }
+    if args.distortion is not None:
+        changes["distortion"] = parse_distortion(args.distortion)
+    return replace(params, **changes)
+
+
+def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
+    """Render ``scene`` as a scene folder or a session; what was written, in words."""
+    from rigkit.errors import InputError
+    from rigkit.synth import write_scene
+
+    if args.session:
+        from rigkit.synth.session import write_synthetic_session
+
+        if args.targets < 0 or args.laser_noise < 0:
+            raise InputError("--targets and --laser-noise must not be negative")
+        session = write_synthetic_session(
+            scene, args.out_dir, n_targets=args.targets, laser_sigma_m=args.laser_noise,
+            seed=args.seed, progress=progress,
+        )
+        what = f"session with {len(session.targets)} targets"
+    else:
+        write_scene(scene, args.out_dir, progress)
+        what = "scene"
+    return what
