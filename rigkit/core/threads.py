@@ -27,7 +27,8 @@ from __future__ import annotations
 import functools
 import os
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import Any, ParamSpec, TypeVar
 
@@ -107,3 +108,61 @@ def limit_threads(threads: int) -> None:
     threads = max(1, int(threads))
     cv2.setNumThreads(threads)
     _as_controller(lambda: threadpoolctl.threadpool_limits(threads, user_api="blas"))
+
+
+def view_threads() -> int:
+    """Threads for a pipeline's independent per-view work (the right and the back
+    view's matching, the two views' agreement, the chunks of one image): as many as
+    OpenCV's parallel loops may use, which :func:`limit_threads` sets to a worker
+    process's share of the cores (1: everything runs in the calling thread)."""
+    import cv2
+
+    return max(1, int(cv2.getNumThreads()))
+
+
+class ViewPool:
+    """A pool of :func:`view_threads` threads for independent pieces of one result.
+
+    Each task runs inside :func:`serial_blas`, and its result is what it would be in
+    the calling thread: the pool only overlaps work that does not depend on one
+    another (OpenCV and NumPy release the GIL in their loops). Tasks are collected in
+    the order the caller chooses, never in the order they finish, so nothing that adds
+    up partial results depends on the number of threads. With one thread a task runs
+    at once, in the calling thread, when it is submitted.
+
+    Use as a context manager; leaving it waits for the tasks still running (and drops
+    those not started, where an error left the block)."""
+
+    def __init__(self, threads: int | None = None) -> None:
+        self.threads = view_threads() if threads is None else max(1, threads)
+        self._pool: ThreadPoolExecutor | None = (
+            ThreadPoolExecutor(self.threads, thread_name_prefix="rigkit-view")
+            if self.threads > 1 else None
+        )
+
+    def submit(self, function: Callable[P, R], *args: P.args, **kwargs: P.kwargs
+               ) -> Future[R]:
+        """``function(*args, **kwargs)`` as a future: in a pool thread, or (one thread)
+        run now with its result or exception held in the future."""
+        task = deterministic(function)
+        if self._pool is not None:
+            return self._pool.submit(task, *args, **kwargs)
+        done: Future[R] = Future()
+        try:
+            done.set_result(task(*args, **kwargs))
+        except BaseException as exc:  # held for .result(), as a pool's future holds it
+            done.set_exception(exc)
+        return done
+
+    def map(self, function: Callable[..., R], *iterables: Iterable[Any]) -> list[R]:
+        """``[function(*args) for args in zip(*iterables)]`` with the calls spread over
+        the pool; the first call's exception (in order) is raised."""
+        futures = [self.submit(function, *args) for args in zip(*iterables, strict=True)]
+        return [f.result() for f in futures]
+
+    def __enter__(self) -> ViewPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)

@@ -16,7 +16,7 @@ from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
 from rigkit.pipeline.checks import check_distinct, check_parallax, check_roles
 from rigkit.pipeline.depth import to_left
 from rigkit.pipeline.distortion import LensFit, refine_lens
-from rigkit.pipeline.features import Matches, match_to, prepare_left
+from rigkit.pipeline.features import Matches, match_all
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import (
     Rectification,
@@ -247,9 +247,8 @@ def estimate_depth(
         report(stage, frac)
 
     size = (left.shape[1], left.shape[0])
-    ref = prepare_left(left, settings=s)  # once for both pairs
-    raw_lr = match_to(ref, right, "left/right", s)
-    raw_lb = match_to(ref, back, "left/back", s)
+    # The left image prepared once for both pairs, the views' work in parallel.
+    raw_lr, raw_lb = match_all(left, [(right, "left/right"), (back, "left/back")], s)
     check_distinct(left, right, back)  # after matching: a blank scene says so first
     check_roles(raw_lr, raw_lb, rig.baseline_lb_m)
     lap("matching", 0.2)

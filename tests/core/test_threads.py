@@ -6,9 +6,10 @@ from __future__ import annotations
 import threading
 
 import numpy as np
+import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from rigkit.core.threads import deterministic, serial_blas
+from rigkit.core.threads import ViewPool, deterministic, serial_blas
 
 
 def _blas_threads() -> set[int]:
@@ -62,3 +63,22 @@ def test_deterministic_keeps_the_functions_name_and_result() -> None:
     with threadpool_limits(limits=2, user_api="blas"):
         assert blas_threads() == {1}
     assert blas_threads.__name__ == "blas_threads" and blas_threads.__doc__ == "Docstring."
+
+
+def test_a_view_pool_of_one_runs_each_task_at_once_in_the_calling_thread() -> None:
+    ran: list[str] = []
+    with ViewPool(1) as pool:
+        first = pool.submit(lambda: ran.append(threading.current_thread().name) or 1)
+        assert ran == [threading.current_thread().name]  # before .result() is asked
+        failed = pool.submit(lambda: 1 // 0)
+    assert first.result() == 1
+    with pytest.raises(ZeroDivisionError):
+        failed.result()
+
+
+def test_a_view_pools_tasks_hold_one_blas_thread_and_come_back_in_order() -> None:
+    with threadpool_limits(limits=2, user_api="blas"), ViewPool(2) as pool:
+        assert pool.map(lambda k: (k, _blas_threads()), range(4)) == [(k, {1}) for k in range(4)]
+        with pytest.raises(ValueError, match="first"):  # the first error in order
+            pool.map(lambda k: (_ for _ in ()).throw(ValueError(("second", "first")[k < 2])),
+                     range(4))

@@ -10,7 +10,9 @@ from rigkit.errors import PipelineError
 from rigkit.pipeline.checks import affine_scale
 from rigkit.pipeline.features import (
     _check_alignment,
+    _ratio_matches,
     local_contrast,
+    match_all,
     match_to,
     match_views,
     prepare_left,
@@ -77,3 +79,76 @@ def test_scale_of_a_view_is_read_along_the_columns() -> None:
     assert affine_scale(np.array([[0.981, 0.0, 0.0], [0.0, 1.0, 0.0]])) == pytest.approx(1.0)
     turned = 0.993 * np.array([[np.cos(0.1), -np.sin(0.1), 0], [np.sin(0.1), np.cos(0.1), 0]])
     assert affine_scale(turned) == pytest.approx(0.993)
+
+
+def _whole_image_contrast(image: np.ndarray, window: int = 31) -> np.ndarray:
+    """local_contrast as it was computed before it went in strips: on whole images."""
+    h, w = image.shape
+    outside = np.isnan(image)
+    cut = bool(outside.any())
+    values = np.where(outside, np.float32(0), image) if cut else image
+    half, box = (max(1, w // 2), max(1, h // 2)), (window // 2 | 1, window // 2 | 1)
+
+    def local_mean(a: np.ndarray) -> np.ndarray:
+        return cv2.boxFilter(cv2.resize(a, half, interpolation=cv2.INTER_AREA), -1, box)
+
+    mean, square = local_mean(values), local_mean(cv2.multiply(values, values))
+    if cut:
+        seen = np.maximum(local_mean((~outside).astype(np.float32)), np.float32(1e-6))
+        mean, square = cv2.divide(mean, seen), cv2.divide(square, seen)
+    spread = cv2.sqrt(np.maximum(cv2.subtract(square, cv2.multiply(mean, mean)), np.float32(1e-3)))
+    mean, spread = (cv2.resize(a, (w, h), interpolation=cv2.INTER_LINEAR) for a in (mean, spread))
+    z = cv2.divide(cv2.subtract(values, mean), spread, scale=32.0)
+    out = cv2.add(z, 128.0, dtype=cv2.CV_8U)  # type: ignore[call-overload]
+    out[outside] = 128
+    return out
+
+
+@pytest.mark.parametrize("size", [(384, 384), (250, 384), (77, 384), (383, 384), (2, 40)])
+def test_local_contrast_in_strips_is_the_whole_image_computation(size) -> None:
+    rng = np.random.default_rng(1)
+    texture = (150 + 5 * plane_waves((0, 0))[: size[0], : size[1]]
+               + rng.normal(0, 1, size)).astype(np.float32)
+    assert np.array_equal(local_contrast(texture), _whole_image_contrast(texture))
+    cut = texture.copy()
+    cut[:, :30] = np.nan
+    cut[size[0] // 3 :, -20:] = np.nan
+    whole = _whole_image_contrast(cut)
+    assert np.array_equal(local_contrast(cut), whole)
+    assert np.isnan(cut).any()  # left as it was
+    assert np.array_equal(local_contrast(cut.copy(), overwrite=True), whole)
+
+
+def test_ratio_matches_are_opencvs_brute_force_knn() -> None:
+    left = (150 + 40 * plane_waves((0, 0), (500, 500))).clip(0, 255).astype(np.uint8)
+    other = (150 + 40 * plane_waves((7.3, -4.1), (500, 500))).clip(0, 255).astype(np.uint8)
+    sift = cv2.SIFT_create(nfeatures=4000, contrastThreshold=0.01)  # type: ignore[attr-defined]
+    (_, d1), (_, d2) = sift.detectAndCompute(left, None), sift.detectAndCompute(other, None)
+    knn = cv2.BFMatcher(cv2.NORM_L2).knnMatch(d1, d2, k=2)
+    good = [m[0] for m in knn if len(m) == 2 and m[0].distance < 0.8 * m[1].distance]
+    assert len(good) > 100
+    for a, b in ((d1, d2), (d1 + np.float32(0.25), d2)):  # SIFT's whole numbers, and not
+        query, train = _ratio_matches(a, b)
+        if a is not d1:
+            knn = cv2.BFMatcher(cv2.NORM_L2).knnMatch(a, b, k=2)
+            good = [m[0] for m in knn if len(m) == 2 and m[0].distance < 0.8 * m[1].distance]
+        assert query.tolist() == [m.queryIdx for m in good]
+        assert train.tolist() == [m.trainIdx for m in good]
+
+
+def test_matching_both_views_at_once_is_matching_each_alone() -> None:
+    left = (150 + 20 * plane_waves((0, 0))).astype(np.float32)
+    right = (150 + 20 * plane_waves((3.3, 0.2))).astype(np.float32)
+    back = (150 + 20 * plane_waves((-1.6, 2.7))).astype(np.float32)
+    both = match_all(left, [(right, "left/right"), (back, "left/back")], n_points=400)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # one thread: the views in turn
+    try:
+        serial = match_all(left, [(right, "left/right"), (back, "left/back")], n_points=400)
+    finally:
+        cv2.setNumThreads(before)
+    ref = prepare_left(left, n_points=400)
+    for m, s, other in zip(both, serial, (right, back), strict=True):
+        alone = match_to(ref, other)
+        for a in (m, s):
+            assert np.array_equal(a.left, alone.left) and np.array_equal(a.other, alone.other)

@@ -1,0 +1,148 @@
+"""Where the time of one whole ``rigkit depth`` command goes: a table of its stages
+(imports, reading the frames, the pipeline's stages as ``depth.json`` records them,
+writing the outputs) and, with ``--profile N``, cProfile's N costliest functions by
+cumulative and by own time.
+
+    python benchmarks/profile_depth.py LEFT RIGHT BACK --focal-px F --baseline-lr M
+        --baseline-lb M [--out out/profile/depth.npy] [--profile 40] [--repeat 3]
+
+A position given as comma-separated files is a burst (as ``rigkit depth`` takes it).
+``--repeat`` runs the command that many times in this process (after the first,
+imports cost nothing) and prints each run's row: the machine's noise shows in their
+spread; ``--memory`` adds each stage's peak resident memory. Run it against another
+checkout with ``PYTHONPATH=/that/checkout`` to compare (docs/results.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import json
+import os
+import pstats
+import resource
+import sys
+import threading
+import time
+from pathlib import Path
+
+STAGES = ("matching", "lens", "rectification", "stereo", "ambiguity", "agreement", "depth")
+
+
+def _timed(module: object, name: str, times: dict[str, float], key: str) -> None:
+    """Wrap ``module.name`` so that the seconds its calls take add up in ``times[key]``
+    (and ``times[key + '@']`` holds when the last call started)."""
+    inner = getattr(module, name)
+
+    def wrapper(*args: object, **kwargs: object) -> object:
+        t0 = time.perf_counter()
+        times[key + "@"] = t0
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            times[key] = times.get(key, 0.0) + time.perf_counter() - t0
+
+    setattr(module, name, wrapper)
+
+
+class RssSampler:
+    """Resident memory (MB) every 2 ms in a thread, as (perf_counter, MB) pairs."""
+
+    def __init__(self) -> None:
+        self.samples: list[tuple[float, float]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._page_mb = os.sysconf("SC_PAGE_SIZE") / 2**20
+        self._thread.start()
+
+    def _run(self) -> None:
+        with open("/proc/self/statm") as statm:
+            while not self._stop.wait(0.002):
+                statm.seek(0)
+                pages = int(statm.read().split()[1])
+                self.samples.append((time.perf_counter(), pages * self._page_mb))
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def peak(self, t0: float, t1: float) -> float:
+        return max((mb for t, mb in self.samples if t0 <= t <= t1), default=float("nan"))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("left")
+    ap.add_argument("right")
+    ap.add_argument("back")
+    ap.add_argument("--focal-px", required=True)
+    ap.add_argument("--baseline-lr", required=True)
+    ap.add_argument("--baseline-lb", required=True)
+    ap.add_argument("--out", type=Path, default=Path("out/profile/depth.npy"))
+    ap.add_argument("--profile", type=int, default=0, metavar="N",
+                    help="print cProfile's N costliest functions (default: no profile)")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--memory", action="store_true",
+                    help="sample resident memory and print each stage's peak (MB)")
+    args = ap.parse_args()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+
+    t0 = time.perf_counter()
+    import rigkit.batch.depthrun as depthrun
+    import rigkit.core.files as files
+    from rigkit.cli import main as rigkit_main
+
+    imports = time.perf_counter() - t0
+    times: dict[str, float] = {}
+    _timed(depthrun, "load_capture", times, "load")
+    _timed(files, "write_together", times, "write")
+    argv = ["depth", args.left, args.right, args.back, "--focal-px", args.focal_px,
+            "--baseline-lr", args.baseline_lr, "--baseline-lb", args.baseline_lb,
+            "--out", str(args.out), "--quiet"]
+    header = (f"{'run':>3} {'import':>6} {'load':>5} "
+              + " ".join(f"{s[:6]:>6}" for s in STAGES)
+              + f" {'write':>5} {'other':>5} {'total':>6} {'peak MB':>7}")
+    print(header)
+    profiler = cProfile.Profile() if args.profile else None
+    for run in range(args.repeat):
+        times.clear()
+        t1 = time.perf_counter()
+        sampler = RssSampler() if args.memory else None
+        if profiler is not None:
+            profiler.enable()
+        rigkit_main(argv)
+        if profiler is not None:
+            profiler.disable()
+        if sampler is not None:
+            sampler.stop()
+        total = time.perf_counter() - t1 + (imports if run == 0 else 0.0)
+        stages = json.loads(args.out.with_suffix(".json").read_text())["timings_s"]
+        known = sum(stages.get(s, 0.0) for s in STAGES) + times["load"] + times["write"]
+        known += imports if run == 0 else 0.0
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        print(f"{run + 1:>3} {imports if run == 0 else 0.0:6.2f} {times['load']:5.2f} "
+              + " ".join(f"{stages.get(s, 0.0):6.2f}" for s in STAGES)
+              + f" {times['write']:5.2f} {total - known:5.2f} {total:6.2f} {peak:7.0f}")
+        if sampler is not None:  # the pipeline's stages follow one another after loading
+            edges = [("load", times["load@"], times["load@"] + times["load"])]
+            at = edges[0][2]
+            for stage in STAGES:
+                edges.append((stage, at, at + stages.get(stage, 0.0)))
+                at += stages.get(stage, 0.0)
+            edges.append(("until write", at, times["write@"]))
+            edges.append(("write", times["write@"], times["write@"] + times["write"]))
+            print("    peak RSS MB: " + ", ".join(
+                f"{name} {sampler.peak(a, b):.0f}" for name, a, b in edges))
+    if profiler is not None:
+        for order in ("cumulative", "tottime"):
+            text = io.StringIO()
+            pstats.Stats(profiler, stream=text).sort_stats(order).print_stats(args.profile)
+            print(f"\n--- by {order} ---")
+            print("\n".join(line[:160] for line in text.getvalue().splitlines()[6:]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
