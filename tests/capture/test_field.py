@@ -265,7 +265,7 @@ def test_exif_check_names_the_setting_that_changed(tmp_path: Path) -> None:
 
 
 def test_a_device_reading_is_recorded_with_its_source_and_frame() -> None:
-    from rigkit.capture.field import reading_from_device
+    from rigkit.capture.readings import reading_from_device
     from rigkit.rangefinder import open_rangefinder
 
     with open_rangefinder("sim://trupulse?interval=0.01&distance=296.4", timeout=2) as device:
