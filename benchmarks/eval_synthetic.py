@@ -54,16 +54,23 @@ def scene_params(args: argparse.Namespace) -> SynthParams:
     return params
 
 
-def synth_setting(text: str) -> tuple[str, float | int | str]:
-    """``NAME=VALUE`` for one :class:`SynthParams` field, e.g. ``distance_m=500`` or
-    ``shimmer_spectrum=vonkarman``."""
+SETTING_KINDS = ("int", "float", "str", "bool")
+
+
+def synth_setting(text: str) -> tuple[str, float | int | str | bool]:
+    """``NAME=VALUE`` for one :class:`SynthParams` field, e.g. ``distance_m=500``,
+    ``shimmer_spectrum=vonkarman`` or ``one_camera=true``."""
     name, _, value = text.partition("=")
     kinds = {f.name: f.type for f in fields(SynthParams)}
-    if kinds.get(name) not in ("int", "float", "str"):
-        known = ", ".join(n for n, k in kinds.items() if k in ("int", "float", "str"))
+    if kinds.get(name) not in SETTING_KINDS:
+        known = ", ".join(n for n, k in kinds.items() if k in SETTING_KINDS)
         raise argparse.ArgumentTypeError(f"{name!r}: not a scene setting ({known})")
     if kinds[name] == "str":
         return name, value
+    if kinds[name] == "bool":
+        if value.lower() not in ("true", "false"):
+            raise argparse.ArgumentTypeError(f"{name}: true or false, not {value!r}")
+        return name, value.lower() == "true"
     try:
         return name, int(value) if kinds[name] == "int" else float(value)
     except ValueError:

@@ -7,14 +7,14 @@ front end gets the same answers:
   (:func:`rigkit.capture.checks.check_capture`'s rules for the frames present so far);
 * clipped highlights (a saturated sensor leaves nothing to match);
 * from the second frame of a burst on: the heat shimmer between the position's first
-  and newest frame, measured at full resolution, and the burst length it calls for at
-  the profile's nominal range;
-* after the right frame: parallax and a plausible rotation. Left and right views of a
-  distant scene differ by a near-similarity (shift, small roll, scale ~1) plus the
-  depth-dependent parallax; a similarity fitted to sub-pixel matches leaves that
-  parallax as residual. No residual means the tripod was not moved (a pure rotation of
-  a telephoto camera is a similarity to a small fraction of a pixel) or the same view
-  was taken twice;
+  frame and each later one, measured at full resolution, and the burst length their
+  median calls for at the profile's nominal range;
+* after the right frame: parallax, scale and a plausible rotation. The parallax is
+  processing's own rule (:meth:`rigkit.pipeline.checks.Parallax.problem`): the matches
+  pseudo-rectified (a camera only turned then leaves nothing but the matches' noise)
+  and the spread of their disparities against that noise. A spread no larger than
+  noise means the tripod was not moved or the same view was taken twice; one clear of
+  noise but too small for depth, a scene with little depth in view;
 * after the back frame: its magnification m against the left view, below 1 because the
   back camera is ``C_lb`` behind, and the range it implies, z = m C_lb / (1 - m) (an
   object at depth z from the left camera is at z + C_lb from the back one; the paper's
@@ -35,7 +35,6 @@ import math
 import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import UTC, datetime
 from pathlib import Path
 
 import cv2
@@ -45,7 +44,7 @@ from rigkit.capture.actions import add_frame
 from rigkit.capture.checks import UNCHECKED, check_exif
 from rigkit.capture.picture import CLIP_LEVEL
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, LaserReading, Session
+from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
 from rigkit.core.files import file_sha256
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import (
@@ -58,7 +57,6 @@ from rigkit.pipeline.checks import (
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.rectify import pseudo_rectify
 from rigkit.pipeline.shimmer import Shimmer, measure_shimmer
-from rigkit.rangefinder.framing import Reading, escape_bytes
 from rigkit.rig.bursts import burst_advice
 from rigkit.rig.findings import Finding
 from rigkit.rig.profile import RigProfile
@@ -145,58 +143,6 @@ def newest_failed(session: Session, position: str) -> bool:
     then its retake, and never compared with it as a burst (a failed frame is nobody's
     reference)."""
     return bool(frames_at(session, position)) and not all_ok(onsite_checks(session, position))
-
-
-TYPO_SPREAD = 0.05
-"""A typed range this far (5 %) from the target's other readings' median is doubted:
-one target's readings agree within the laser's metre."""
-TYPO_FACTOR = 1.5
-"""A target's first typed range more than this factor from the back view's implied
-range or the profile's planned one is doubted (a 3011 typed for 301.1)."""
-
-
-def reading_doubt(range_m: float, others: Sequence[float], implied_m: float | None,
-                  planned_m: float | None) -> str | None:
-    """Why a range typed for a target looks like a typo, or None: far from the target's
-    other readings (m) where it has some, else from the range the back view implied or
-    the profile's planned range (m, None where unknown)."""
-    if others:
-        middle = statistics.median(others)
-        if abs(range_m - middle) > TYPO_SPREAD * middle:
-            return f"{range_m:g} m is far from this target's other readings ({middle:.1f} m)"
-        return None
-    for what, reference in (("the back view implied", implied_m),
-                            ("the profile plans", planned_m)):
-        if reference and not reference / TYPO_FACTOR <= range_m <= reference * TYPO_FACTOR:
-            return f"{range_m:g} m is far from the ~{reference:.0f} m {what}"
-    return None
-
-
-def implied_range(session: Session) -> float | None:
-    """The range (m) the back frame's magnification implies against the left frame,
-    None without both or where they cannot be matched."""
-    if not (frames_at(session, "left") and frames_at(session, "back")):
-        return None
-    try:
-        left, reduction = check_image(session, frames_at(session, "left")[-1])
-        view = _view_of(session, "back", left, reduction)
-    except RigkitError:
-        return None
-    z = implied_range_m(view.scale, session.rig().baseline_lb.value_m)
-    return z if math.isfinite(z) else None
-
-
-def reading_from_device(reading: Reading, source: str) -> LaserReading:
-    """A rangefinder's reading as the session records it; ``source`` is
-    ``<protocol>:<port>``."""
-    return LaserReading(
-        slope_distance_m=reading.slope_distance_m,
-        time_utc=datetime.fromtimestamp(reading.timestamp, UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        source=source,
-        inclination_deg=reading.inclination_deg,
-        raw=escape_bytes(reading.raw),
-        azimuth_deg=reading.azimuth_deg,
-    )
 
 
 def resume_step(session: Session) -> str:
@@ -359,10 +305,10 @@ def _right_scale_check(scale: float, profile: RigProfile | None) -> Finding | No
         return Finding("scale", f"right view {scale:.4f}× the left one: the zoom changed",
                        redo="set the zoom back to the left frame's and take the right frame "
                        "again")
-    z = None if profile is None else profile.nominal_range_m
-    if z is None:
+    if profile is None or profile.nominal_range_m is None:
         return None
-    back = z / (z + profile.baseline_lb.value_m)  # type: ignore[union-attr]
+    z = profile.nominal_range_m
+    back = z / (z + profile.baseline_lb.value_m)
     if scale >= (1.0 + back) / 2:
         return None
     return Finding("scale", f"right view {scale:.4f}× the left one, nearer the {back:.4f}× a "
@@ -482,7 +428,7 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
         return checks
     left, reduction = check_image(session, frames_at(session, "left")[-1])
     try:
-        view = _view_of(session, position, left, reduction)
+        view = view_of(session, position, left, reduction)
     except RigkitError as exc:
         return [*checks, Finding("match", str(exc), redo=f"aim at the left frame's scene and "
                                  f"take the {position} frame")]
@@ -490,12 +436,12 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
         return [*checks, *right_checks(view, session.rig())]
     back = back_checks(view, session.rig())
     if all_ok(back) and frames_at(session, "right"):  # magnified: is the right one less so?
-        right = _view_of(session, "right", left, reduction)
+        right = view_of(session, "right", left, reduction)
         back += _roles_check(right, view, session.rig().baseline_lb.value_m)
     return [*checks, *back]
 
 
-def _view_of(session: Session, position: str, left: np.ndarray, reduction: float) -> ViewMap:
+def view_of(session: Session, position: str, left: np.ndarray, reduction: float) -> ViewMap:
     """How ``position``'s newest frame maps onto the left check image ``left``."""
     other, _ = check_image(session, frames_at(session, position)[-1])
     focal = session.rig().focal_px if position == "right" else None

@@ -6,17 +6,22 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # annotations only: the command's help must not load the pipeline
+    from rigkit.batch.depthrun import RigAtSize
+    from rigkit.rig.profile import RigProfile
 
 POSITIONS = ("left", "right", "back")
 
 
-def rig_source(args: argparse.Namespace) -> Any:  # RigProfile | (size -> RigProfile)
+def rig_source(args: argparse.Namespace) -> RigProfile | RigAtSize:
     """The rig: --rig's profile with the flags' values in place of its own, or (without
     --rig) a function giving the profile that the flags describe for the frames' size.
-    Both are checked as a profile file is (:func:`rigkit.rig.profile.rig_from_data`)."""
+    The flags go into the profile's data, which is then checked once, as a profile file
+    is (:func:`rigkit.rig.profile.rig_from_data`)."""
     from rigkit.errors import InputError
-    from rigkit.rig.profile import load_rig, rig_from_data, rig_to_dict
+    from rigkit.rig.profile import read_rig_data, rig_from_data
 
     for flag, unit in (("focal_px", "pixels"), ("baseline_lr", "m"), ("baseline_lb", "m")):
         value = getattr(args, flag)
@@ -24,8 +29,7 @@ def rig_source(args: argparse.Namespace) -> Any:  # RigProfile | (size -> RigPro
             raise InputError(f"--{flag.replace('_', '-')} {value:g}: must be a positive "
                              f"number of {unit}")
     if args.rig is not None:
-        profile = load_rig(args.rig)
-        return rig_from_data(_override(rig_to_dict(profile), args), args.rig)
+        return rig_from_data(_override(read_rig_data(args.rig), args), args.rig)
     missing = [flag for flag in ("focal_px", "baseline_lr", "baseline_lb")
                if getattr(args, flag) is None]
     if missing:
@@ -34,7 +38,7 @@ def rig_source(args: argparse.Namespace) -> Any:  # RigProfile | (size -> RigPro
             + ": give --rig PROFILE or --focal-px, --baseline-lr and --baseline-lb"
         )
 
-    def at_size(size: tuple[int, int]) -> Any:
+    def at_size(size: tuple[int, int]) -> RigProfile:
         data = {
             "version": 1,
             "name": "command line",
@@ -48,26 +52,37 @@ def rig_source(args: argparse.Namespace) -> Any:  # RigProfile | (size -> RigPro
     return at_size
 
 
-def _override(data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
-    """Profile data with the command line's values in place of its own."""
+def _override(data: Any, args: argparse.Namespace) -> Any:
+    """A profile's data with the command line's values in place of its own; where the
+    data is not laid out as a profile, left for the check to name what is wrong."""
     from rigkit.commands import parse_distortion
     from rigkit.rig.camera import DISTORTION_TERMS
 
-    cameras = [data["camera"]] if "camera" in data else list(data["cameras"].values())
+    if not isinstance(data, dict):
+        return data
+    shared, each = data.get("camera"), data.get("cameras")
+    cameras = [shared] if isinstance(shared, dict) else \
+        [c for c in each.values() if isinstance(c, dict)] if isinstance(each, dict) else []
     for camera in cameras:
         if args.focal_px is not None:
-            tolerance = camera["focal_length"]["tolerance_fraction"]
+            given = camera.get("focal_length")
+            tolerance = given.get("tolerance_fraction", 0.0) if isinstance(given, dict) else 0.0
             camera["focal_length"] = {"px": args.focal_px, "tolerance_fraction": tolerance}
         if args.distortion is not None:
             terms = parse_distortion(args.distortion)
             camera["distortion"] = dict(zip(DISTORTION_TERMS, terms, strict=True))
         if args.lensfun is not None:
             camera["distortion"] = _lensfun(args.lensfun)
+    baselines = data.get("baselines")
     for name, value in (("C_lr", args.baseline_lr), ("C_lb", args.baseline_lb)):
-        if value is not None:
-            data["baselines"][name]["value_m"] = value
+        if value is not None and isinstance(baselines, dict):
+            given = baselines.get(name)
+            tolerance = given.get("tolerance_m", 0.0) if isinstance(given, dict) else 0.0
+            baselines[name] = {"value_m": value, "tolerance_m": tolerance}
     if args.fixed_lens:
-        data["pipeline"] = {**data.get("pipeline", {}), "distortion_terms": 0}
+        pipeline = data.get("pipeline")
+        data["pipeline"] = {**(pipeline if isinstance(pipeline, dict) else {}),
+                            "distortion_terms": 0}
     return data
 
 

@@ -93,7 +93,7 @@ def _typed_readings(session: Any, ranges: list[str], inclination: float | None,
 def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any], str | None]:
     """The readings of ``--shots`` shots from the device, and why it stopped early (None
     when it did not): readings received before a lost device are kept, not thrown away."""
-    from rigkit.capture.field import reading_from_device
+    from rigkit.capture.readings import reading_from_device
     from rigkit.errors import InputError, RigkitError, environment_message
     from rigkit.rangefinder import open_rangefinder
     from rigkit.rangefinder.protocols import default_protocol

@@ -45,6 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-tilt", type=float, default=1.0, help="max x/y rotation, degrees")
     p.add_argument("--max-roll", type=float, default=5.0, help="max z rotation, degrees")
     p.add_argument("--max-pp-offset", type=float, default=30.0, help="principal point offset, px")
+    p.add_argument("--one-camera", action="store_true",
+                   help="one camera moved between the positions: the three views share "
+                   "one principal point (default: three cameras, one each)")
     p.add_argument("--relief", type=float, default=0.03, help="terrain depth range / distance")
     p.add_argument("--noise", type=float, default=1.5, help="read noise sigma, 8-bit DN")
     field = p.add_argument_group(

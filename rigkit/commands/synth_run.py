@@ -57,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
         max_tilt_deg=args.max_tilt,
         max_roll_deg=args.max_roll,
         max_pp_offset_px=args.max_pp_offset,
+        one_camera=args.one_camera,
         relief=args.relief,
         noise_dn=args.noise,
     )

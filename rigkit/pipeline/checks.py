@@ -29,9 +29,12 @@ NOISE_SPAN = 3.29
 TRACKING_FLOOR_PX = 0.01
 """Least RMS error credited to sub-pixel tracks, px of the images matched: noise-free
 rendered views leave row residuals far below what tracking can promise."""
-CLEAR_OF_NOISE = 3.0
+CLEAR_OF_NOISE = 1.5
 """Disparities must spread this many times what the matches' own noise spreads them
-for the right view to count as seen from elsewhere."""
+for the right view to count as seen from elsewhere: a camera only turned spreads them
+0.75-1.2 times that (rendered views at 1536 and 4608 px, without and with heat shimmer);
+relief adds to noise in quadrature, so field scenes whose disparities spread 3.4 and
+5.0 px under shimmer spreading them 1.3 and 1.8 px stand 2.7 times clear."""
 MAX_IMPLIED_RANGE_M = 50_000.0  # beyond this, the back view shows no magnification
 MAX_RIGHT_SCALE_CHANGE = 0.01
 """Left and right views are at the same distance: a larger scale change is zoom."""
@@ -107,8 +110,8 @@ class Parallax:
     which only noise and shimmer leave). A camera only turned between the views leaves
     noise; depth relief seen from C_lr apart adds to it. A flat scene square to the view
     has no relief either, so a spread as small as noise cannot tell a tripod that was not
-    moved from a flat scene; one clear of noise but under :data:`MIN_PARALLAX_PX` is a
-    moved tripod before a scene with little depth.
+    moved from a flat scene; one clear of noise whose relief (:attr:`relief_px`) is under
+    :data:`MIN_PARALLAX_PX` is a moved tripod before a scene with little depth.
     """
 
     spread_px: float
@@ -119,14 +122,20 @@ class Parallax:
         """Whether the views were taken from different places (spread clear of noise)."""
         return self.spread_px > CLEAR_OF_NOISE * self.noise_px
 
+    @property
+    def relief_px(self) -> float:
+        """The spread less what noise explains (they add in quadrature), px."""
+        return math.sqrt(max(0.0, self.spread_px**2 - self.noise_px**2))
+
     def problem(self) -> tuple[str, str] | None:
         """What is wrong (a message and what to redo), or None where the disparities
-        spread enough for depth and clear of noise. The one rule of the on-site check
-        (:mod:`rigkit.capture.field`) and of processing (:func:`check_parallax`)."""
-        if self.moved and self.spread_px >= MIN_PARALLAX_PX:
+        spread clear of noise and, beyond it, by :data:`MIN_PARALLAX_PX`. The one rule
+        of the on-site check (:mod:`rigkit.capture.field`) and of processing
+        (:func:`check_parallax`)."""
+        if self.moved and self.relief_px >= MIN_PARALLAX_PX:
             return None
         if self.moved:
-            return (f"little depth in view: the right frame moved ({self.spread_px:.2f} px "
+            return (f"little depth in view: the right frame moved ({self.relief_px:.2f} px "
                     f"of parallax), but the scene is nearly flat (depth needs "
                     f"{MIN_PARALLAX_PX:g} px)",
                     "aim where near and far things share the view, and take the three "

@@ -30,6 +30,7 @@ from rigkit.pipeline.settings import PipelineSettings
 from rigkit.pipeline.stereo import (
     SGBM,
     StereoMatcher,
+    clipped_black,
     fill_holes,
     restrict_to_footprints,
     surface_mask,
@@ -292,6 +293,11 @@ def estimate_depth(
         dense, (holes, ~surface & left_fp, agree.disagree & left_fp), scale, rect, amb.beta,
         rig.baseline_lr_m, left.shape, lens,
     )
+    black = clipped_black(left)  # the canvas is too coarse to see it: stereo.clipped_black
+    if black.any():
+        depth[black] = np.nan
+        no_surface |= black
+        filled &= ~black
     sigma = _depth_sigma(depth, filled, rig, amb, s)
     known = depth[np.isfinite(depth)]  # np.nanmedian's value, at half its cost
     z_median = float(np.median(known)) if known.size else float("nan")

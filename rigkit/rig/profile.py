@@ -191,7 +191,7 @@ def load_rig(path: str | Path) -> RigProfile:
     unknown key, missing key, wrong type, implausible unit or impossible value.
     """
     path = Path(path)
-    return rig_from_data(_read_yaml(path), path)
+    return rig_from_data(read_rig_data(path), path)
 
 
 def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
@@ -227,7 +227,9 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
     )
 
 
-def _read_yaml(path: Path) -> Any:
+def read_rig_data(path: Path) -> Any:
+    """A profile file's YAML as plain data, not yet checked (:func:`rig_from_data` does:
+    ``rigkit depth --rig P --focal-px F`` puts its flags into it first)."""
     return read_strict_yaml(path, "rig profile")
 
 

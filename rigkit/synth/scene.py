@@ -64,6 +64,7 @@ class SynthParams:
     max_tilt_deg: float = 1.0  # |x|, |y| Euler angles of right and back cameras
     max_roll_deg: float = 5.0  # |z| Euler angle of right and back cameras
     max_pp_offset_px: float = 30.0  # principal point offset from the image centre, per axis
+    one_camera: bool = False  # one camera moved between the positions: one principal point
     relief: float = 0.03  # terrain depth variation, as a fraction of distance
     n_boxes: int = 7
     n_spheres: int = 3
@@ -182,6 +183,7 @@ def _cameras(p: SynthParams, rng: np.random.Generator) -> tuple[dict[str, Camera
     f = p.focal_px
     cams: dict[str, Camera] = {}
     eulers: dict[str, tuple[float, float, float]] = {}
+    left_pp = np.zeros(2)
     centres = {
         "left": (0.0, 0.0, 0.0),
         "right": (p.baseline_lr_m, 0.0, 0.0),
@@ -193,7 +195,10 @@ def _cameras(p: SynthParams, rng: np.random.Generator) -> tuple[dict[str, Camera
         else:
             tx, ty = rng.uniform(-p.max_tilt_deg, p.max_tilt_deg, 2)
             e = (float(tx), float(ty), float(rng.uniform(-p.max_roll_deg, p.max_roll_deg)))
-        pp = rng.uniform(-p.max_pp_offset_px, p.max_pp_offset_px, 2)
+        pp = rng.uniform(-p.max_pp_offset_px, p.max_pp_offset_px, 2)  # drawn either way
+        if p.one_camera and name != "left":
+            pp = left_pp  # the same camera's principal point at every position
+        left_pp = pp if name == "left" else left_pp
         K = intrinsics(f, (p.width - 1) / 2 + pp[0], (p.height - 1) / 2 + pp[1])
         # euler_to_matrix gives the camera's orientation (camera -> world); R is its inverse.
         R = euler_to_matrix(*e).T

@@ -94,7 +94,7 @@ def test_a_device_reading_keeps_its_azimuth(tmp_path: Path) -> None:
 
 
 def test_the_field_tui_keeps_the_azimuth_and_360_is_north() -> None:
-    from rigkit.capture.field import reading_from_device
+    from rigkit.capture.readings import reading_from_device
     from rigkit.rangefinder import encode_trupulse_hv, parse_trupulse
 
     frame = encode_trupulse_hv(300.0, inclination_deg=0.5, azimuth_deg=360.0).strip()

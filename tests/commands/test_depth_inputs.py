@@ -96,3 +96,29 @@ def test_help_examples_name_files_that_exist(capsys, monkeypatch) -> None:
     named = {arg for command in commands for word in command for arg in word.split(",")
              if re.match(r"(capture|rigs)/", arg)}
     assert named and all((ROOT / name).is_file() for name in named), named
+
+
+def _depth_args(*flags: str) -> object:
+    from rigkit.cli import build_parser
+
+    return build_parser().parse_args(["depth", "l.png", "r.png", "b.png", "--out", "d.npy",
+                                      *flags])
+
+
+def test_rig_flags_go_into_the_profile_which_is_checked_once(tmp_path: Path) -> None:
+    from rigkit.commands.depth_run import rig_source
+    from rigkit.errors import InputError
+
+    profile = ROOT / "rigs" / "p1000-tripod.yaml"
+    rig = rig_source(_depth_args("--rig", str(profile), "--focal-px", "53000",
+                                 "--baseline-lb", "2.1"))
+    assert rig.focal_px == 53000.0 and rig.baseline_lb.value_m == 2.1
+    assert rig.baseline_lb.tolerance_m == 0.02  # the profile's tolerance is kept
+    assert rig.cameras["left"].focal_tolerance == 0.01
+    for text, named in (("- a list\n", "must be a mapping"),
+                        ("version: 1\nname: x\ncamera: {}\n", "baselines")):
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(text)
+        with pytest.raises(InputError, match=named) as caught:
+            rig_source(_depth_args("--rig", str(bad), "--focal-px", "53000"))
+        assert str(bad) in str(caught.value) and "\n" not in str(caught.value)

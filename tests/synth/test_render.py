@@ -84,6 +84,17 @@ def test_protocol_rotations_and_principal_points_are_within_bounds(truth) -> Non
     assert np.allclose(scene.cameras["back"].C, [0, -0.3, -2])
 
 
+def test_one_camera_shares_its_principal_point_and_draws_the_same_poses() -> None:
+    three = generate_scene(SynthParams(width=400, height=300), seed=9)
+    one = generate_scene(SynthParams(width=400, height=300, one_camera=True), seed=9)
+    left = one.cameras["left"].K[:2, 2]
+    assert np.array_equal(left, three.cameras["left"].K[:2, 2])
+    assert not np.allclose(left, [199.5, 149.5])  # off centre, as a real camera's
+    for name in ("right", "back"):
+        assert np.array_equal(one.cameras[name].K[:2, 2], left)
+        assert one.euler_deg[name] == three.euler_deg[name]  # only the intrinsics differ
+
+
 def test_bad_parameters_are_rejected() -> None:
     with pytest.raises(InputError, match="hfov_deg"):
         generate_scene(SynthParams(hfov_deg=0.0), 1)
