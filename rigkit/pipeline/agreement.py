@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from rigkit.core.threads import ViewPool
 from rigkit.geometry import rotvec_to_matrix
 from rigkit.pipeline.ambiguity import Ambiguity
 from rigkit.pipeline.depth import triangulate_z
@@ -213,14 +214,20 @@ def view_agreement(
     known = np.isfinite(disparity)
     right_steps = shimmer_steps(rect.row_rms_px, scale, axes=1)
     back_steps = shimmer_steps(amb.rms_px / np.sqrt(2), scale, axes=2)  # 2-D RMS per axis
-    back_small = _resized(back, scale)
-    xs, ys = back_positions(disparity, scale, rect, amb, lens, baseline_lr_m, baseline_lb_m)
-    ncc = [
-        _best_zncc(left, lambda dx, dy: right_at_disparity(right, disparity, dy), right_steps,
-                   known, window),
-        _best_zncc(left, lambda dx, dy: _sample(back_small, xs + np.float32(dx),
-                                                ys + np.float32(dy)), back_steps, known, window),
-    ]
+
+    def right_ncc() -> np.ndarray:
+        return _best_zncc(left, lambda dx, dy: right_at_disparity(right, disparity, dy),
+                          right_steps, known, window)
+
+    def back_ncc() -> np.ndarray:
+        back_small = _resized(back, scale)
+        xs, ys = back_positions(disparity, scale, rect, amb, lens, baseline_lr_m, baseline_lb_m)
+        return _best_zncc(left, lambda dx, dy: _sample(back_small, xs + np.float32(dx),
+                                                       ys + np.float32(dy)),
+                          back_steps, known, window)
+
+    with ViewPool() as pool:  # the two views' comparisons are independent
+        ncc = pool.map(lambda compare: compare(), (right_ncc, back_ncc))
     with np.errstate(invalid="ignore"):
         bad = (ncc[0] < min_ncc) | (ncc[1] < min_ncc)
     if margin:

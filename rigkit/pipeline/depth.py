@@ -15,6 +15,7 @@ from collections.abc import Iterator
 import cv2
 import numpy as np
 
+from rigkit.core.threads import ViewPool
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, scaling
 
@@ -52,18 +53,25 @@ def left_grid(
     (xs, ys) are the pixels' positions on the ``scale``-resized rectified canvas
     (float32, for cv2.remap) and ``uf`` their full-resolution rectified column
     (float64). ``lens`` maps recorded to ideal pixels first (None: pinhole)."""
+    for r0 in range(0, shape[0], CHUNK_ROWS):
+        yield _grid_rows(rect, scale, shape, lens, r0)
+
+
+def _grid_rows(
+    rect: Rectification, scale: float, shape: tuple[int, int], lens: Lens | None, r0: int
+) -> tuple:
+    """:func:`left_grid`'s chunk of the rows from ``r0``."""
     H, W = shape
     h = rect.H_left
     S = scaling(scale)  # diagonal scale and shift: resized = S @ full resolution
     lens = lens or Lens(float(rect.K[0, 0]), (W, H))
-    for r0 in range(0, H, CHUNK_ROWS):
-        u, v = lens.ideal_rows(r0, min(r0 + CHUNK_ROWS, H))
-        inv = 1.0 / (h[2, 0] * u + (h[2, 1] * v + h[2, 2]))  # homogeneous weight
-        uf = (h[0, 0] * u + (h[0, 1] * v + h[0, 2])) * inv
-        vf = (h[1, 0] * u + (h[1, 1] * v + h[1, 2])) * inv
-        xs = (S[0, 0] * uf + S[0, 2]).astype(np.float32)
-        ys = (S[1, 1] * vf + S[1, 2]).astype(np.float32)
-        yield slice(r0, r0 + uf.shape[0]), xs, ys, uf
+    u, v = lens.ideal_rows(r0, min(r0 + CHUNK_ROWS, H))
+    inv = 1.0 / (h[2, 0] * u + (h[2, 1] * v + h[2, 2]))  # homogeneous weight
+    uf = (h[0, 0] * u + (h[0, 1] * v + h[0, 2])) * inv
+    vf = (h[1, 0] * u + (h[1, 1] * v + h[1, 2])) * inv
+    xs = (S[0, 0] * uf + S[0, 2]).astype(np.float32)
+    ys = (S[1, 1] * vf + S[1, 2]).astype(np.float32)
+    return slice(r0, r0 + uf.shape[0]), xs, ys, uf
 
 
 def to_left(
@@ -78,7 +86,8 @@ def to_left(
 ) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """Depth of every pixel of the original (recorded) left image, and masks of the
     rectified canvas carried to the same pixels, in one pass over :func:`left_grid`
-    (each chunk of the grid is used once and its memory reused for the next).
+    (each chunk of the grid is used once and its memory reused for the next), its
+    chunks spread over a :class:`rigkit.core.threads.ViewPool`.
 
     disparity: (h, w) float32, px of the ``scale``-resized rectified canvas,
     ``x_left - x_right``, NaN = unknown. masks: up to 8 (h, w) bool on the same canvas.
@@ -93,8 +102,14 @@ def to_left(
     for k, mask in enumerate(masks):
         packed |= mask.astype(np.uint8) << k
     bits = np.empty(shape, np.uint8)
-    for rows, xs, ys, uf in left_grid(rect, scale, shape, lens):
+
+    def chunk(r0: int) -> None:
+        rows, xs, ys, uf = _grid_rows(rect, scale, shape, lens, r0)
         d = cv2.remap(disparity, xs, ys, cv2.INTER_LINEAR, borderValue=np.nan)
         depth[rows] = triangulate_z(rect, uf, d / scale, beta, baseline_m)
         bits[rows] = cv2.remap(packed, xs, ys, cv2.INTER_NEAREST, borderValue=0)
+
+    # Each chunk's rows are its own: spread over threads, they come out as in turn.
+    with ViewPool() as pool:
+        pool.map(chunk, range(0, shape[0], CHUNK_ROWS))
     return depth, tuple((bits & (1 << k)) != 0 for k in range(len(masks)))

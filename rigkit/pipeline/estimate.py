@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from rigkit.core.threads import deterministic
+from rigkit.core.threads import ViewPool, deterministic
 from rigkit.errors import InputError, PipelineError
 from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
 from rigkit.pipeline.agreement import view_agreement
@@ -264,9 +264,11 @@ def estimate_depth(
     lap("rectification", 0.35)
     lo, hi = rect.disparity_range
     rng = (int(np.floor(lo * scale)), int(np.ceil(hi * scale)))
-    disparity = matcher(rl, rr, rng)
-    left_fp, right_fp = footprints(rect, size, scale, lens=lens, right_lens=right_lens)
-    surface = surface_mask(rl, left_fp, s.min_texture, s.texture_window_px)
+    with ViewPool() as pool:  # the masks are found while the pair is matched
+        matched = pool.submit(matcher, rl, rr, rng)
+        left_fp, right_fp = footprints(rect, size, scale, lens=lens, right_lens=right_lens)
+        surface = surface_mask(rl, left_fp, s.min_texture, s.texture_window_px)
+        disparity = matched.result()
     disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
     lap("stereo", 0.75)
     amb = remove_ambiguity(
