@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rigkit.core.chatter import captured_stderr
+from rigkit.core.chatter import attributed, captured_stderr
 from rigkit.errors import InputError
 
 _CUT_SHORT = re.compile(r"premature end|unexpected end|data corrupted|read error|"
@@ -63,13 +63,13 @@ def decode_grey(path: Path, data: bytes) -> np.ndarray:
 def _decode(path: Path, data: bytes) -> np.ndarray:
     """OpenCV's image of ``data`` as stored; InputError naming ``path`` where it has
     none, refuses the file, or prints that the file is cut short or damaged."""
-    try:
-        with captured_stderr() as chatter:
-            img = cv2.imdecode(np.frombuffer(data, np.uint8), _FLAGS)
+    try:  # alongside other frames' decoding (rigkit.core.chatter.attributed)
+        img, printed = attributed(lambda: cv2.imdecode(np.frombuffer(data, np.uint8), _FLAGS),
+                                  lambda text: _CUT_SHORT.search(text) is not None)
     except cv2.error as exc:
         raise InputError(f"{path}: not a readable image (OpenCV refuses it: {exc.err})"
                          ) from None
-    check_decoder_output(path, chatter.text)
+    check_decoder_output(path, printed)
     if img is not None:
         return img
     if _jpeg_cut_short(data):
