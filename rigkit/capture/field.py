@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections.abc import Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,6 +47,7 @@ from rigkit.capture.picture import CLIP_LEVEL
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
 from rigkit.core.files import file_sha256
+from rigkit.core.threads import ViewPool
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import (
     MAX_RIGHT_SCALE_CHANGE,
@@ -54,7 +56,7 @@ from rigkit.pipeline.checks import (
     measure_parallax,
     roles_problem,
 )
-from rigkit.pipeline.features import match_views
+from rigkit.pipeline.features import Reference, match_to, prepare_left
 from rigkit.pipeline.rectify import pseudo_rectify
 from rigkit.pipeline.shimmer import Shimmer, measure_shimmer
 from rigkit.rig.bursts import burst_advice
@@ -173,18 +175,25 @@ def next_step(session: Session) -> str:
 # -- checks ---------------------------------------------------------------------------------
 
 
-def full_image(session: Session, frame: Frame) -> np.ndarray:
-    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey."""
-    path = session.path / frame.file
-    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
-    return to_pipeline([grey], linear=is_raw(path))[0]
+def decoded(session: Session, frame: Frame) -> np.ndarray:
+    """A frame decoded: (H, W) float32 grey in [0, 1] of full scale
+    (:func:`rigkit.capture.rawio.load_linear_grey`, RAW through the session's cache)."""
+    return load_linear_grey(session.path / frame.file, session.path / DERIVED_DIR, frame.sha256)
 
 
-def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX
-                ) -> tuple[np.ndarray, float]:
+def full_image(session: Session, frame: Frame, grey: np.ndarray | None = None) -> np.ndarray:
+    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey;
+    ``grey``: the frame as :func:`decoded` gives it, where already read."""
+    grey = decoded(session, frame) if grey is None else grey
+    return to_pipeline([grey], linear=is_raw(session.path / frame.file))[0]
+
+
+def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX,
+                grey: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """A frame as (h, w) float32 grey in [0, 255], its longest side at most ``side_px``,
-    and the reduction factor (full-resolution px per check px, >= 1)."""
-    return _reduced(full_image(session, frame), side_px)
+    and the reduction factor (full-resolution px per check px, >= 1); ``grey`` as for
+    :func:`full_image`."""
+    return _reduced(full_image(session, frame, grey), side_px)
 
 
 def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarray, float]:
@@ -196,14 +205,21 @@ def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarra
     return image, reduction
 
 
+MATCH_POINTS = 1500
+"""Corners of the left check image tracked into the other view."""
+
+
 def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0,
-              focal_px: float | None = None) -> ViewMap:
+              focal_px: float | None = None, ref: Reference | None = None) -> ViewMap:
     """How ``other`` maps onto ``left`` (check images, (h, w) float32, ``reduction``
     full-resolution px per px): the scale and roll of the best homography at the image
     centre and, given the full-resolution ``focal_px`` and views of the same size, the
     left/right parallax as processing measures it (pseudo-rectified, so a camera only
-    turned leaves none). PipelineError if they do not match."""
-    matches = match_views(left, other, "left/other", n_points=1500)
+    turned leaves none). ``ref``: ``left`` prepared for matching with ``MATCH_POINTS``
+    corners, where already done (:func:`rigkit.pipeline.features.prepare_left`).
+    PipelineError if they do not match."""
+    ref = ref or prepare_left(left, MATCH_POINTS)
+    matches = match_to(ref, other, "left/other")
     a, b = matches.left.astype(np.float32), matches.other.astype(np.float32)
     similarity, _ = cv2.estimateAffinePartial2D(a, b, method=cv2.LMEDS)
     if similarity is None:
@@ -268,11 +284,12 @@ def exif_check(session: Session, position: str) -> Finding:
     return Finding("exif", f"EXIF agrees with the other frames and the profile{note}", ok=True)
 
 
-def exposure_check(session: Session, frame: Frame) -> Finding:
+def exposure_check(session: Session, frame: Frame, grey: np.ndarray | None = None
+                   ) -> Finding:
     """Clipped highlights: where the sensor saturated there is no texture to match, and
-    a frame too bright for one position is so for all (they must share the exposure)."""
-    path = session.path / frame.file
-    grey = load_linear_grey(path, session.path / DERIVED_DIR, frame.sha256)
+    a frame too bright for one position is so for all (they must share the exposure).
+    ``grey``: the frame as :func:`decoded` gives it, where already read."""
+    grey = decoded(session, frame) if grey is None else grey
     clipped = float(np.mean(grey >= CLIP_LEVEL))
     if clipped <= MAX_BLOWN:
         return Finding("exposure", f"highlights: {100 * clipped:.2f} % clipped", ok=True)
@@ -418,27 +435,48 @@ def _median_shimmer(measured: Sequence[Shimmer]) -> Shimmer:
 
 
 def onsite_checks(session: Session, position: str) -> list[Finding]:
-    """Every check for the newest frame of ``position`` (which must have one)."""
-    checks = [exif_check(session, position),
-              exposure_check(session, frames_at(session, position)[-1])]
-    shimmer = shimmer_check(session, position)
-    if shimmer is not None:
-        checks.append(shimmer)
-    if position == "left" or not frames_at(session, "left"):
-        return checks
-    left, reduction = check_image(session, frames_at(session, "left")[-1])
-    try:
-        view = view_of(session, position, left, reduction)
-    except RigkitError as exc:
-        return [*checks, Finding("match", str(exc), redo=f"aim at the left frame's scene and "
-                                 f"take the {position} frame")]
-    if position == "right":
-        return [*checks, *right_checks(view, session.rig())]
-    back = back_checks(view, session.rig())
-    if all_ok(back) and frames_at(session, "right"):  # magnified: is the right one less so?
-        right = view_of(session, "right", left, reduction)
-        back += _roles_check(right, view, session.rig().baseline_lb.value_m)
-    return [*checks, *back]
+    """Every check for the newest frame of ``position`` (which must have one). The
+    frames it needs (this, the left and, for a back frame, the right one: its roles
+    check) are decoded once each, side by side, and matched to the left one prepared
+    once; a failure shows where the checks in turn need that frame, not before."""
+    newest = {p: frames_at(session, p)[-1] for p in POSITIONS if frames_at(session, p)}
+    compared = position != "left" and "left" in newest
+    wanted = [position]
+    if compared:
+        wanted += ["left"] + (["right"] if position == "back" and "right" in newest else [])
+    with ViewPool() as pool:
+        greys = {p: pool.submit(decoded, session, newest[p]) for p in wanted}
+        checks = [exif_check(session, position),
+                  exposure_check(session, newest[position], greys[position].result())]
+        shimmer = shimmer_check(session, position)
+        if shimmer is not None:
+            checks.append(shimmer)
+        if not compared:
+            return checks
+        left, reduction = check_image(session, newest["left"], grey=greys["left"].result())
+        ref = prepare_left(left, MATCH_POINTS, pool=pool)
+        views = {p: pool.submit(_view_from, session, p, newest[p], greys[p], left, reduction, ref)
+                 for p in wanted if p != "left"}
+        try:
+            view = views[position].result()
+        except RigkitError as exc:
+            return [*checks, Finding("match", str(exc), redo=f"aim at the left frame's scene "
+                                     f"and take the {position} frame")]
+        if position == "right":
+            return [*checks, *right_checks(view, session.rig())]
+        back = back_checks(view, session.rig())
+        if all_ok(back) and "right" in views:  # magnified: is the right one less so?
+            back += _roles_check(views["right"].result(), view,
+                                 session.rig().baseline_lb.value_m)
+        return [*checks, *back]
+
+
+def _view_from(session: Session, position: str, frame: Frame, grey: Future[np.ndarray],
+               left: np.ndarray, reduction: float, ref: Reference) -> ViewMap:
+    """:func:`view_of`, the frame's decoding (``grey``) and ``left``'s ``ref`` under way."""
+    other, _ = check_image(session, frame, grey=grey.result())
+    focal = session.rig().focal_px if position == "right" else None
+    return map_views(left, other, reduction, focal, ref)
 
 
 def view_of(session: Session, position: str, left: np.ndarray, reduction: float) -> ViewMap:
