@@ -103,10 +103,10 @@ class DepthResult:
         (1), filled from a neighbour (2), nothing to match (4), views disagree (8); 0
         where there is no depth for another reason (outside the right view)."""
         known = np.isfinite(self.depth)
-        out = np.where(known, FLAG_MATCHED, 0).astype(np.uint8)
-        out[self.filled & known] = FLAG_FILLED
-        out[self.no_surface] |= FLAG_NO_SURFACE
-        out[self.disagree] |= FLAG_DISAGREE
+        out = np.multiply(known, FLAG_MATCHED, dtype=np.uint8)  # in place from here on
+        np.copyto(out, np.uint8(FLAG_FILLED), where=self.filled & known)
+        np.bitwise_or(out, np.uint8(FLAG_NO_SURFACE), out=out, where=self.no_surface)
+        np.bitwise_or(out, np.uint8(FLAG_DISAGREE), out=out, where=self.disagree)
         return out
 
     def offset_warning(self) -> str | None:
