@@ -176,5 +176,5 @@ def load_capture(
             greys.append(stack_burst(frames, f"{position} burst"))
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    left, right, back = to_pipeline(greys, linear=linear)
+    left, right, back = to_pipeline(greys, linear=linear, overwrite=True)  # ours alone
     return LoadedCapture((left, right, back), (left.shape[1], left.shape[0]), shimmer, linear)

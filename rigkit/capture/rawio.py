@@ -305,13 +305,16 @@ def frame_size(path: str | Path) -> tuple[int, int]:
         raise InputError(f"{path}: {_libraw_reason(exc)}") from None
 
 
-def _scaled_to_255(frame: np.ndarray) -> np.ndarray:
-    out = frame * np.float32(255.0)
+def _scaled_to_255(frame: np.ndarray, overwrite: bool = False) -> np.ndarray:
+    out = np.multiply(frame, np.float32(255.0), out=frame if overwrite else None)
     return np.clip(out, 0.0, 255.0, out=out)
 
 
-def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool) -> list[np.ndarray]:
-    """Frames (H, W) in [0, 1] -> the pipeline's (H, W) float32 in [0, 255], one scale.
+def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool, overwrite: bool = False
+                ) -> list[np.ndarray]:
+    """Frames (H, W) in [0, 1] -> the pipeline's (H, W) float32 in [0, 255], one scale;
+    ``overwrite``: float32 frames (not linear) may be scaled in place, which spares a
+    fresh image-sized array each.
 
     All frames share one scale, so their relative brightness is kept: the rig's
     cameras shoot the same scene with the same settings, and the stereo matcher
@@ -334,7 +337,7 @@ def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool) -> list[np.ndar
     if not frames:
         raise ValueError("to_pipeline needs at least one frame")
     if not linear:
-        return [_scaled_to_255(frame) for frame in frames]
+        return [_scaled_to_255(frame, overwrite) for frame in frames]
     white = max(_white_point(frame) for frame in frames)
     gain = np.float32(1.0 / white) if white > 0 else np.float32(1.0)
     return [_srgb_encode(np.clip(frame * gain, 0.0, 1.0)) * np.float32(255.0) for frame in frames]
