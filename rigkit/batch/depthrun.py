@@ -31,7 +31,6 @@ from rigkit.capture.frames import FrameFile, load_capture
 from rigkit.capture.session import POSITIONS
 from rigkit.pipeline import DepthResult, estimate_depth
 from rigkit.pipeline.shimmer import Shimmer
-from rigkit.rangefinder.ranging import left_camera_intrinsics
 from rigkit.rig.bursts import burst_warning
 from rigkit.rig.profile import RigProfile
 
@@ -62,7 +61,7 @@ class DepthRun:
         """The run as JSON-ready data (the body of ``depth.json``): frames, rig,
         warnings, shimmer, and the pipeline's diagnostics."""
         rig = self.profile.geometry()
-        f, cx, cy = left_camera_intrinsics(self.profile, (self.left.shape[1], self.left.shape[0]))
+        camera = self.profile.intrinsics((self.left.shape[1], self.left.shape[0]))
         return {
             "frames": {pos: [_frame_meta(f) for f in self.bursts[pos]] for pos in POSITIONS},
             "burst_length": self.burst_length,
@@ -71,7 +70,7 @@ class DepthRun:
                     "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
                     "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},
             # Back-projection of the depth map (rigkit export), pixel centres at integers.
-            "left_camera_px": {"f": f, "cx": cx, "cy": cy},
+            "left_camera_px": {"f": camera.focal_px, "cx": camera.cx_px, "cy": camera.cy_px},
             "warnings": list(self.warnings),
             "shortfalls": list(self.shortfalls),
             "shimmer": {"frames": self.shimmer[1], **self.shimmer[0].as_dict()}

@@ -18,7 +18,6 @@ import numpy as np
 
 from rigkit.capture.session import RESULTS_DIR, Session, is_session, load_session
 from rigkit.errors import InputError
-from rigkit.rangefinder.ranging import left_camera_intrinsics
 
 
 @dataclass(frozen=True)
@@ -29,8 +28,8 @@ class DepthMap:
     estimate; ``sigma``: (H, W) float32, metres, its one standard error; ``grey``: (H, W)
     uint8, the left image the depth map lies on. ``f``, ``cx``, ``cy``: the left camera's
     pinhole intrinsics in px, pixel centres at integers
-    (:func:`rigkit.rangefinder.ranging.left_camera_intrinsics`, as the laser comparison
-    uses them). ``name`` names the exported files; ``rig`` the rig profile; ``run_id``
+    (:meth:`rigkit.rig.profile.RigProfile.intrinsics`, as the pipeline and the laser
+    comparison take them). ``name`` names the exported files; ``rig`` the rig profile; ``run_id``
     the processing run (None for ``rigkit depth``'s files); ``session`` the session the
     map belongs to, if any (its tripod position and targets georeference it).
     """
@@ -81,8 +80,9 @@ def session_depth(path: Path) -> DepthMap:
         raise InputError(f"{path}: results were replaced while being read (a run just "
                          "finished); export again")
     rig = session.rig()
-    f, cx, cy = left_camera_intrinsics(rig, (arrays[0].shape[1], arrays[0].shape[0]))
-    return DepthMap(*arrays, f=f, cx=cx, cy=cy, name=session.name, rig=rig.name,
+    camera = rig.intrinsics((arrays[0].shape[1], arrays[0].shape[0]))
+    return DepthMap(*arrays, f=camera.focal_px, cx=camera.cx_px, cy=camera.cy_px,
+                    name=session.name, rig=rig.name,
                     run_id=run_id, session=session)
 
 

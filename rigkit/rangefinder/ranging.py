@@ -10,9 +10,9 @@ Pixel convention (the one the pipeline, the depth maps and :mod:`rigkit.synth` u
 (u, v) with u along columns and v along rows, **pixel centres at integer
 coordinates**, so the top-left pixel's centre is (0, 0) and the image centre of a
 W x H image is ((W - 1) / 2, (H - 1) / 2). A rig profile's ``principal_point_px`` is
-measured from the top-left pixel's *corner* (docs/rig-profiles.md); use
-:func:`left_camera_intrinsics` to turn a profile into (f, cx, cy) in the convention
-here (it subtracts 0.5 px).
+measured from the top-left pixel's *corner* (docs/rig-profiles.md);
+:meth:`rigkit.rig.profile.RigProfile.intrinsics` turns a profile into (f, cx, cy) in the
+convention here (it subtracts 0.5 px), for the pipeline and export alike.
 
 The aperture offset is (right, up, forward) in metres, as a rig profile's
 ``rangefinder.offset`` gives it.
@@ -114,24 +114,6 @@ def range_from_depth(
     return math.dist(point, offset_m)
 
 
-def left_camera_intrinsics(
-    profile: RigProfile, image_size: tuple[int, int]
-) -> tuple[float, float, float]:
-    """(f, cx, cy) in pixels of a rig's left camera, pixel centres at integers.
-
-    f is the profile's common focal length; the principal point is the profile's
-    ``principal_point_px`` less 0.5 px (the profile measures from the top-left pixel's
-    corner), else the centre of the ``image_size`` = (width, height) image.
-    """
-    camera = profile.cameras["left"]
-    width, height = image_size
-    if camera.principal_point_px is not None:
-        cx, cy = camera.principal_point_px[0] - 0.5, camera.principal_point_px[1] - 0.5
-    else:
-        cx, cy = (width - 1) / 2, (height - 1) / 2
-    return profile.focal_px, cx, cy
-
-
 def aperture_offset(profile: RigProfile) -> Offset:
     """The rangefinder aperture's (right, up, forward) offset in metres; zero if the
     profile gives none."""
@@ -146,7 +128,6 @@ def profile_range_from_depth(
     pixel: tuple[float, float],
 ) -> float:
     """:func:`range_from_depth` with a rig profile's left camera and rangefinder offset."""
-    f, cx, cy = left_camera_intrinsics(profile, image_size)
-    return range_from_depth(
-        depth_m, pixel, fx=f, fy=f, cx=cx, cy=cy, offset_m=aperture_offset(profile)
-    )
+    camera = profile.intrinsics(image_size)
+    return range_from_depth(depth_m, pixel, fx=camera.focal_px, fy=camera.focal_px,
+                            cx=camera.cx_px, cy=camera.cy_px, offset_m=aperture_offset(profile))

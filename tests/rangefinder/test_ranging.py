@@ -10,7 +10,6 @@ import pytest
 from rigkit.rangefinder.ranging import (
     aperture_offset,
     depth_from_range,
-    left_camera_intrinsics,
     profile_range_from_depth,
     range_from_depth,
 )
@@ -63,13 +62,15 @@ def test_profile_principal_point_is_moved_to_pixel_centres(truth: SceneTruth) ->
     left = truth.cameras["left"]
     cx, cy = left.K[0, 2], left.K[1, 2]
     profile = _profile(truth, [cx + 0.5, cy + 0.5])  # corner convention
-    assert left_camera_intrinsics(profile, (left.width, left.height)) == pytest.approx(
-        (left.f, cx, cy), abs=1e-9
-    )
-    centred = _profile(truth, None)
-    assert left_camera_intrinsics(centred, (left.width, left.height))[1:] == (
-        (left.width - 1) / 2, (left.height - 1) / 2,
-    )
+    camera = profile.intrinsics((left.width, left.height))
+    assert (camera.focal_px, camera.cx_px, camera.cy_px) == pytest.approx((left.f, cx, cy),
+                                                                          abs=1e-9)
+    # The pipeline gets the same point, as its offset from the image centre.
+    centre = ((left.width - 1) / 2, (left.height - 1) / 2)
+    assert profile.geometry().principal_point_px == pytest.approx(
+        (cx - centre[0], cy - centre[1]), abs=1e-9)
+    centred = _profile(truth, None).intrinsics((left.width, left.height))
+    assert (centred.cx_px, centred.cy_px) == centre and centred.centre_offset_px == (0, 0)
     assert aperture_offset(profile) == OFFSET
 
 
@@ -78,7 +79,8 @@ def test_range_and_depth_recover_ray_traced_truth(truth: SceneTruth) -> None:
     pixels, z_true, r_true = _pixels_and_truth(truth)
     assert len(pixels) > 40
     profile = _profile(truth, [left.K[0, 2] + 0.5, left.K[1, 2] + 0.5])
-    f, cx, cy = left_camera_intrinsics(profile, (left.width, left.height))
+    camera = profile.intrinsics((left.width, left.height))
+    f, cx, cy = camera.focal_px, camera.cx_px, camera.cy_px
     for (u, v), z, r in zip(pixels, z_true, r_true, strict=True):
         intrinsics = {"fx": f, "fy": f, "cx": cx, "cy": cy, "offset_m": OFFSET}
         r_est = range_from_depth(z, (u, v), **intrinsics)
