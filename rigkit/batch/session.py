@@ -74,6 +74,12 @@ class Outcome:
 # -- one session ----------------------------------------------------------------------------
 
 
+BRIEF_HOLD_S = 2.0
+"""How long processing waits for the session's lock: a change such as a target added or
+the field TUI recording its step holds it for a moment; another processing run holds it
+for as long as it takes, and is named instead of waited for."""
+
+
 def process_session(
     path: str | Path,
     run_id: str,
@@ -86,13 +92,14 @@ def process_session(
     Nothing under ``raw/`` is touched; ``results/`` is replaced only once the new
     results are completely written. The session is locked meanwhile
     (:func:`rigkit.capture.actions.changing`, which first repairs what an interrupted
-    command left): a change to it waits, or is refused with who holds it.
+    command left): a change to it waits, or is refused with who holds it; processing
+    itself waits :data:`BRIEF_HOLD_S` for a change under way.
     """
     t0 = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
     path = Path(path)
     load_session(path)  # a clear error for a folder that is no session, before locking
-    with changing(path, "process", wait_s=0.0) as session:
+    with changing(path, "process", wait_s=BRIEF_HOLD_S) as session:
         return _process_locked(session, run_id, force, report, t0)
 
 

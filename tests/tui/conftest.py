@@ -54,8 +54,16 @@ async def wait_for(pilot, condition: Callable[[], bool], what: str, timeout: flo
     deadline = time.monotonic() + timeout
     while not condition():
         if time.monotonic() > deadline:
-            pytest.fail(f"timed out waiting for {what}")
+            pytest.fail(f"timed out waiting for {what}; the screen shows: {shown(pilot.app)}")
         await pilot.pause(0.05)
+
+
+def shown(app) -> str:
+    """What the current screen's text widgets show, one line (for a failure message)."""
+    from textual.widgets import Static
+
+    texts = (str(widget.render()).strip() for widget in app.screen.query(Static))
+    return " | ".join(t.replace("\n", " ") for t in texts if t)[:3000]
 
 
 def text(app, selector: str) -> str:
