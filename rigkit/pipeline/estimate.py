@@ -228,19 +228,16 @@ def estimate_depth(
     back: np.ndarray,
     rig: RigGeometry,
     matcher: StereoMatcher | None = None,
-    stereo_scale: float | None = None,
-    fill_max_gap: int | None = None,
     progress: Progress | None = None,
     settings: PipelineSettings | None = None,
 ) -> DepthResult:
-    """Dense metric depth of the left view from three (H, W) float32 grey images.
-
-    ``settings`` (default :class:`PipelineSettings`) holds every tunable number;
-    ``stereo_scale`` and ``fill_max_gap`` override the two most used ones.
+    """Dense metric depth of the left view from three (H, W) float32 grey images, for
+    the ``rig`` (what is known of it) under ``settings`` (default
+    :class:`PipelineSettings`, every tunable number; the rig's facts are never there).
     ``progress(stage, fraction)`` is called as stages finish.
     """
     _check_sizes(left, right, back)
-    s = _settings(settings, stereo_scale, fill_max_gap)
+    s = settings or PipelineSettings()
     matcher = matcher or SGBM()
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -330,21 +327,6 @@ def estimate_depth(
         median_depth_m=z_median,
         offset_depth_fraction=offset_fraction,
     )
-
-
-def _settings(
-    settings: PipelineSettings | None, stereo_scale: float | None, fill_max_gap: int | None
-) -> PipelineSettings:
-    s = settings or PipelineSettings()
-    changes: dict[str, float | int] = {}
-    if stereo_scale is not None:
-        changes["stereo_scale"] = stereo_scale
-    if fill_max_gap is not None:
-        changes["fill_max_gap_px"] = fill_max_gap
-    try:
-        return replace(s, **changes)  # type: ignore[arg-type]
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
 
 
 def _lenses(
