@@ -44,6 +44,8 @@ from rigkit.pipeline.ambiguity import Ambiguity
 from rigkit.pipeline.depth import triangulate_z
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, scaling
+from rigkit.pipeline.rig import RigGeometry
+from rigkit.pipeline.settings import PipelineSettings
 
 CHUNK_ROWS = 256
 
@@ -199,18 +201,22 @@ def shimmer_steps(rms_px: float, scale: float, axes: int) -> list[tuple[float, f
 
 def view_agreement(
     left: np.ndarray, right: np.ndarray, back: np.ndarray, disparity: np.ndarray,
-    scale: float, rect: Rectification, amb: Ambiguity, lens: Lens,
-    baseline_lr_m: float, baseline_lb_m: float, min_ncc: float, window: int, margin: int,
+    scale: float, rect: Rectification, amb: Ambiguity, lens: Lens, rig: RigGeometry,
+    settings: PipelineSettings,
 ) -> Agreement:
     """Pixels of the rectified left canvas whose depth the right or the back view
-    contradicts: ZNCC over ``window`` px below ``min_ncc`` in either view, grown by
-    ``margin`` px (semi-global matching has spread a wrong disparity that far). Each
-    view's window is taken at the best of :func:`shimmer_steps` around where the depth
-    puts it (module docstring).
+    contradicts: ZNCC over ``settings.agreement_window_px`` px below
+    ``settings.min_agreement`` in either view, grown by ``settings.agreement_margin_px``
+    px (semi-global matching has spread a wrong disparity that far). Each view's window
+    is taken at the best of :func:`shimmer_steps` around where the depth puts it (module
+    docstring).
 
     left, right: (h, w) float32 rectified pair at ``scale`` (:func:`warp_pair`);
     back: (H, W) float32 recorded back image; disparity: (h, w) float32 px at
-    ``scale``, ``x_left - x_right``, NaN = none; ``amb``: the back camera's pose."""
+    ``scale``, ``x_left - x_right``, NaN = none; ``amb``: the back camera's pose;
+    ``rig``: its baselines place the back view's windows."""
+    window, min_ncc = settings.agreement_window_px, settings.min_agreement
+    margin = settings.agreement_margin_px
     known = np.isfinite(disparity)
     right_steps = shimmer_steps(rect.row_rms_px, scale, axes=1)
     back_steps = shimmer_steps(amb.rms_px / np.sqrt(2), scale, axes=2)  # 2-D RMS per axis
@@ -221,7 +227,8 @@ def view_agreement(
 
     def back_ncc() -> np.ndarray:
         back_small = _resized(back, scale)
-        xs, ys = back_positions(disparity, scale, rect, amb, lens, baseline_lr_m, baseline_lb_m)
+        xs, ys = back_positions(disparity, scale, rect, amb, lens, rig.baseline_lr_m,
+                                rig.baseline_lb_m)
         return _best_zncc(left, lambda dx, dy: _sample(back_small, xs + np.float32(dx),
                                                        ys + np.float32(dy)),
                           back_steps, known, window)

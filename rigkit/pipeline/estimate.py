@@ -10,7 +10,7 @@ import numpy as np
 
 from rigkit.core.threads import ViewPool, deterministic
 from rigkit.errors import InputError, PipelineError
-from rigkit.geometry import NO_DISTORTION, Distortion, distortion_coefficients
+from rigkit.geometry import NO_DISTORTION, Distortion
 from rigkit.pipeline.agreement import view_agreement
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
 from rigkit.pipeline.checks import check_distinct, check_parallax, check_roles
@@ -26,6 +26,7 @@ from rigkit.pipeline.rectify import (
     scaling,
     warp_pair,
 )
+from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.pipeline.stereo import (
     SGBM,
@@ -35,34 +36,6 @@ from rigkit.pipeline.stereo import (
     restrict_to_footprints,
     surface_mask,
 )
-
-
-@dataclass(frozen=True)
-class RigGeometry:
-    """The only calibration the method needs: focal length (px) and two baselines (m),
-    plus the lens distortion where it is known (OpenCV ``k1, k2, p1, p2, k3`` on
-    normalised coordinates about the image centre; zeros = none)."""
-
-    focal_px: float
-    baseline_lr_m: float
-    baseline_lb_m: float
-    distortion: Distortion = NO_DISTORTION
-    principal_point_px: tuple[float, float] = (0.0, 0.0)
-    """The left camera's principal point, (x right, y down) px from the image centre,
-    where the rig profile gives one (:func:`rigkit.rig.camera.intrinsics`)."""
-    one_camera: bool = False
-    """One camera moved between the three positions: the views share one principal
-    point. False: three cameras, each with its own."""
-
-    def __post_init__(self) -> None:
-        for name in ("focal_px", "baseline_lr_m", "baseline_lb_m"):
-            value = getattr(self, name)
-            if not np.isfinite(value) or value <= 0:
-                raise InputError(f"{name} must be a positive number, got {value!r}")
-        try:
-            object.__setattr__(self, "distortion", distortion_coefficients(self.distortion))
-        except ValueError as exc:
-            raise InputError(f"distortion: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -278,9 +251,7 @@ def estimate_depth(
         m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
     )
     lap("ambiguity", 0.8)
-    agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, back_lens,
-                           rig.baseline_lr_m, rig.baseline_lb_m, s.min_agreement,
-                           s.agreement_window_px, s.agreement_margin_px)
+    agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, back_lens, rig, s)
     if agree.disagree.any():
         disparity = np.where(agree.disagree, np.nan, disparity).astype(np.float32)
         if _touches(m_lb, agree.disagree, rect, scale):
