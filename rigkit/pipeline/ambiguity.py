@@ -16,14 +16,19 @@ projective pattern, so the two do not trade off.
 
 Two things the fit cannot see set the offset's standard error besides the matches'
 noise. Heat shimmer moves whole patches of matches together, so a spatial jackknife
-measures it. The views' principal points are taken at the image centre; a back view
-whose principal point sits elsewhere than the left one's is not a rotation of it
-(they differ by a gradient of scale ~0.05 px across the frame, the size of the depth
-signal), and with ~25 px between them the offset moves by up to ~0.8 px. Their
-uncertainty is added as a *consider* term (Schmidt's consider covariance, as in orbit
-determination): the offset's sensitivity to a shift of the back principal point, times
-its prior spread. Estimating the shift instead was tried: with clean matches it is
-recovered, but a single frame's shimmer leaves it uncertain by more than its prior.
+measures it. The fit takes every view's principal point at the image centre of the
+ideal pixels it is given; the lens stage has fitted each view's own and taken it out
+(:mod:`rigkit.pipeline.distortion`): a back view whose principal point sits elsewhere
+than the left one's is not a rotation of it (they differ by a gradient of scale ~0.05
+px across the frame, the size of the depth signal), and a turn of the back camera
+about a misplaced centre magnifies its view (up to ~0.5 % of depth at 40 px; issue
+35). What is left of their uncertainty is added as a *consider* term (Schmidt's
+consider covariance, as in orbit determination): the offset's sensitivity to a shift
+of the back principal point, times its prior spread, which is generous where the
+views settled the centres (in shimmer the prior holds them). Estimating the shift in
+this fit instead was tried: with clean matches it is recovered, but a single frame's
+shimmer leaves it uncertain by more than its prior, and the left view's centre, about
+which the back view turns, is not in this fit.
 """
 
 from __future__ import annotations

@@ -9,41 +9,44 @@ ones), and the rotations between them that make its bend harmful also make it
 observable - the same idea as self-calibrating distortion from image matches
 (Fitzgibbon, CVPR 2001; Kukelova and Pajdla, radial distortion in minimal problems).
 
-Here it is a small bundle adjustment over the corners tracked into both other views
-(:mod:`rigkit.pipeline.features` tracks the same left corners into each): every
-track has one unknown inverse depth; the right camera has a rotation and a baseline
-direction in the image plane (length C_lr), the back camera a rotation and a
-sideways/vertical offset (C_lb behind); the lens has radial terms ``k1`` (and ``k2``),
-measured about the image centre like :class:`~rigkit.pipeline.lens.Lens`. The
+Here it is a small bundle adjustment (:mod:`rigkit.pipeline.bundle`) over the corners
+tracked into both other views (:mod:`rigkit.pipeline.features` tracks the same left
+corners into each): every track has one unknown inverse depth; the right camera has a
+rotation and a baseline direction in the image plane (length C_lr), the back camera a
+rotation and a sideways/vertical offset (C_lb behind); the lens has radial terms ``k1``
+(and ``k2``), measured about the image centre like :class:`~rigkit.pipeline.lens.Lens`. The
 right-camera yaw and the depths trade off (the paper's disparity ambiguity); the back
 view's magnification settles them, as in :mod:`rigkit.pipeline.ambiguity`, so the
 radial terms are fitted against a full three-view geometry. A given distortion (a
 profile, ``camera.distortion``) is the starting point, refined in k1 and k2
 (:func:`refine_lens`); tangential terms and ``k3`` are kept as given unless the views
 reject the given lens. The fitted lens replaces the given one only where the views
-rule it out (:func:`_significant`): heat shimmer and principal points apart move the
-fit even when the given lens is right.
+rule it out (:func:`~rigkit.pipeline.covariance.significant_change`): heat shimmer and
+principal points apart move the fit even when the given lens is right.
 
-A lens bends each camera's image about that camera's principal point, and three
-cameras are not centred alike (up to ~30 px apart). Bent about the image centre in
-every view, a 6 px corner bend leaves a smooth ~0.25 px mismatch between views whose
-centres differ by ~40 px, the size of the back view's depth signal. Wherever the lens
-in use bends, each view's centre is therefore fitted too (:func:`_fit_centres`), held
-to the image centre by a prior of ``principal_point_sigma_px``; the later stages bend
-each view about its own (:attr:`LensFit.centres_px`).
+Three cameras are not centred alike (principal points up to ~40 px from the image
+centre), and that matters with no bend at all: the back camera is turned by a degree
+or so against the left one, and a turn taken about a point ``delta`` px from the true
+principal point magnifies the view by about 1.5 * turn (rad) * delta / f, which is
+the back view's depth signal itself (1 deg about 40 px off: ~0.35 % of depth at
+300 m, lens or none). A bend adds a mismatch of its own (a 6 px corner bend, centres
+~40 px apart: ~0.25 px). Each view's centre is therefore fitted (:func:`_fit_centres`),
+held to the image centre by a prior of ``principal_point_sigma_px``; the later stages
+take each view's out with its bend (:attr:`LensFit.centres_px`, :class:`Lens`), so that
+the back view's turn is about its true centre and a shift of it moves no depth.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import cv2
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.special import chdtri
 
-from rigkit.geometry import NO_DISTORTION, Distortion, distort, rotvec_to_matrix, undistort
+from rigkit.geometry import Distortion, distort
 from rigkit.pipeline.ambiguity import back_view_start, shift_sensitivity, spatial_blocks
+from rigkit.pipeline.bundle import Problem, bounds, corner_radius, initial, plain_jacobian
+from rigkit.pipeline.covariance import cluster_covariance, significant_change
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, pseudo_rectify
@@ -51,13 +54,9 @@ from rigkit.pipeline.rectify import Rectification, pseudo_rectify
 MIN_TRACKS = 50
 MAX_TRACKS = 1500  # enough for two global terms; the cost grows with the tracks
 LOSS_SCALE_PX = 0.3  # residual where the robust loss starts to discount a track
-MAX_BASELINE_TURN_RAD = 0.2  # how far the fit may turn the rectification's baseline
 SIGNIFICANCE = 0.997  # the fit replaces the given lens only where the views rule it out
 # at this confidence (a chi-square test on the terms, as for 3 sigma on one of them)
-MAX_DEPTH_STEPS = 8
-INLIER_PX = 1.0  # tracks within this of the fit count in the principal-point term
 MAX_CENTRE_SIGMAS = 4.0  # a view's centre stays within this many prior sigmas of the image's
-DEPTH_TOL_PX = 1e-6  # far below what the outer finite differences resolve (~1e-3 px)
 
 
 @dataclass(frozen=True)
@@ -77,8 +76,8 @@ class LensFit:
     fit used; ``rms_px``: their reprojection RMS; ``start_rejected``: the views ruled
     out the given lens and this is the fit from no distortion (:func:`refine_lens`);
     ``centres_px``: ((x, y) left, right, back) px from the image centre to each view's
-    centre of distortion (fitted where the lens in use bends and the views' principal
-    points may differ, else zeros).
+    principal point, its centre of distortion (fitted where the views' principal points
+    may differ, else zeros).
     """
 
     distortion: Distortion
@@ -145,12 +144,6 @@ def three_view_tracks(m_lr: Matches, m_lb: Matches) -> tuple[np.ndarray, ...]:
     return m_lr.left[ir], m_lr.other[ir], m_lb.other[ib]
 
 
-def corner_radius(lens: Lens) -> float:
-    """The image corner's distance from the centre, normalised (r / f)."""
-    w, h = lens.size
-    return float(np.hypot(w - 1, h - 1) / 2 / lens.focal_px)
-
-
 def corner_shift_px(lens: Lens) -> float:
     """How far ``lens`` moves the image corner along the radius (px, + outwards)."""
     rc = corner_radius(lens)
@@ -158,111 +151,6 @@ def corner_shift_px(lens: Lens) -> float:
     y = x * lens.size[1] / lens.size[0]
     xd, yd = distort(np.array(x), np.array(y), lens.distortion)
     return float((np.hypot(xd, yd) - rc) * lens.focal_px)
-
-
-class _Problem:
-    """The bundle adjustment by variable projection (Golub and Pereyra): the outer
-    parameters are ``n_terms`` radial increments (as the fraction of the corner radius
-    they move the corner by), the right camera's baseline angle and rotation vector, and
-    the back camera's rotation vector and (x, y) offset (m); each track's inverse depth
-    is solved for inside, so the outer problem has a handful of unknowns and the
-    yaw/depth trade-off cannot slow it down."""
-
-    def __init__(self, lens, tracks, c_lr, c_lb, n_terms, w0):
-        self.lens, self.n_terms = lens, n_terms
-        self.c_lr, self.c_lb = c_lr, c_lb
-        self.pl, self.pr, self.pb = tracks
-        self.rc = corner_radius(lens)
-        self.w = np.full(len(self.pl), w0)
-        self.centres = np.zeros((3, 2))  # each view's centre of distortion, px from lens.centre
-
-    def distortion(self, p: np.ndarray) -> Distortion:
-        k = list(self.lens.distortion)
-        for j in range(self.n_terms):
-            k[j if j < 2 else 4] += p[j] / self.rc ** (2 * (j + 1))
-        return (k[0], k[1], k[2], k[3], k[4])
-
-    def _setup(self, p: np.ndarray):
-        """Per-parameter constants: the lens, and per other view the left rays (N, 3)
-        rotated into it, its rotated centre and the positions it saw."""
-        n = self.n_terms
-        d = self.distortion(p)
-        nl = (self.pl - self.lens.centre - self.centres[0]) / self.lens.focal_px
-        x, y = undistort(nl[:, 0], nl[:, 1], d)
-        rays = np.stack([x, y, np.ones_like(x)], axis=1)
-        phi = p[n]
-        c_r = self.c_lr * np.array([np.cos(phi), np.sin(phi), 0.0])
-        c_b = np.array([p[n + 7], p[n + 8], -self.c_lb])
-        views = []
-        for rv, c, seen, centre in ((p[n + 1 : n + 4], c_r, self.pr, self.centres[1]),
-                                    (p[n + 4 : n + 7], c_b, self.pb, self.centres[2])):
-            R = rotvec_to_matrix(rv)
-            views.append((rays @ R.T, R @ c, seen, self.lens.centre + centre))
-        return d, views
-
-    def _track_residuals(self, setup, w: np.ndarray) -> np.ndarray:
-        """(N, 4): right (u, v) and back (u, v) reprojection errors, px, for inverse
-        depths ``w`` (1/m). The point ray / w seen from centre c projects as
-        R ray - w R c (up to scale)."""
-        d, views = setup
-        out = []
-        for rays, Rc, seen, centre in views:
-            Xc = rays - w[:, None] * Rc
-            x, y = distort(Xc[:, 0] / Xc[:, 2], Xc[:, 1] / Xc[:, 2], d)
-            uv = np.stack([x, y], axis=1) * self.lens.focal_px + centre
-            out.append(uv - seen)
-        return np.concatenate(out, axis=1)
-
-    def residuals(self, p: np.ndarray) -> np.ndarray:
-        setup = self._setup(p)
-        w = self.w  # warm start: the last call's depths are within a step of these
-        r = self._track_residuals(setup, w)
-        for _ in range(MAX_DEPTH_STEPS):  # Gauss-Newton per track, nearly linear in w
-            h = 1e-3 * w  # nearly linear: a wide step is exact and far above rounding
-            J = (self._track_residuals(setup, w + h) - r) / h[:, None]
-            step = -(J * r).sum(axis=1) / np.maximum((J * J).sum(axis=1), 1e-300)
-            w = w + step
-            r = self._track_residuals(setup, w)
-            # Converged when the residuals (but those of a few hopeless tracks, which
-            # the robust loss ignores) move by less than DEPTH_TOL_PX.
-            moved = np.abs(step) * np.sqrt((J * J).sum(axis=1))
-            if np.percentile(moved, 99) < DEPTH_TOL_PX:
-                break
-        self.w = w
-        return r.ravel()
-
-
-def _initial(
-    problem: _Problem, rect: Rectification, back_rotvec: np.ndarray
-) -> np.ndarray:
-    """Start: the rectification's right rotation and baseline angle, the back view's
-    rotation from its coarse affine map (:func:`~rigkit.pipeline.ambiguity.back_view_start`)."""
-    baseline = rect.R_rect.T @ np.array([1.0, 0.0, 0.0])
-    rv, _ = cv2.Rodrigues(rect.R_lr.T)
-    return np.concatenate(
-        [
-            np.zeros(problem.n_terms),
-            [np.arctan2(baseline[1], baseline[0])],
-            rv.ravel(),
-            back_rotvec,
-            [0.0, 0.0],
-        ]
-    )
-
-
-def _bounds(p0: np.ndarray, n_terms: int, baseline_lb_m: float) -> tuple[np.ndarray, ...]:
-    """Bounds on the parameters (lower, upper): the right camera's baseline direction
-    within ``MAX_BASELINE_TURN_RAD`` of the rectification's (which the left/right rows
-    settle), the back camera's sideways and vertical offset under its distance
-    behind; the rest free. Without them, on one field scene the first (plain) pass let
-    bad tracks turn the baseline by 92 deg and lift the back camera 4 m, a minimum the
-    robust pass did not leave (the corner's sigma 18 px, the offset's 73 % of depth;
-    docs/results-log.md)."""
-    lower, upper = np.full(p0.size, -np.inf), np.full(p0.size, np.inf)
-    phi = n_terms
-    lower[phi], upper[phi] = p0[phi] - MAX_BASELINE_TURN_RAD, p0[phi] + MAX_BASELINE_TURN_RAD
-    lower[-2:], upper[-2:] = -baseline_lb_m, baseline_lb_m
-    return lower, upper
 
 
 def fit_distortion(
@@ -303,27 +191,27 @@ class _TermsFit:
     there was nothing to fit."""
 
     result: LensFit
-    problem: _Problem | None = None
+    problem: Problem | None = None
     x: np.ndarray | None = None
     opts: dict | None = None
     inflation: float = float("inf")
     principal_point_sigma_px: float = 0.0
+    blocks: int = 4
 
     def centred(self) -> LensFit:
-        """The result with each view bent about its own centre, fitted with the terms
-        where the fit is taken, under the given terms where those stand; as it is where
-        the lens in use does not bend or the views share one principal point."""
+        """The result with each view's own centre, fitted with the terms where the fit
+        is taken, under the given terms where those stand (no bend included); as it is
+        where the views share one principal point."""
         r, problem = self.result, self.problem
         if (problem is None or self.x is None or self.opts is None
-                or self.principal_point_sigma_px <= 0 or r.distortion == NO_DISTORTION
-                or not np.isfinite(self.inflation)):
+                or self.principal_point_sigma_px <= 0 or not np.isfinite(self.inflation)):
             return r
         n = problem.n_terms
         start = self.x.copy()
         if not r.significant:
             start[:n] = 0.0
         x, centres = _fit_centres(problem, start, self.opts, self.principal_point_sigma_px,
-                                  self.inflation, fixed_terms=0 if r.significant else n)
+                                  self.inflation, self.blocks, 0 if r.significant else n)
         centred = replace(r, centres_px=tuple((float(u), float(v)) for u, v in centres))
         if not r.significant:
             return centred
@@ -349,23 +237,23 @@ def _fit_terms(
     keep = np.unique(np.linspace(0, len(pl) - 1, min(len(pl), MAX_TRACKS)).astype(int))
     tracks = (pl[keep], pr[keep], pb[keep])
     z0, back_rotvec = back_view_start(m_lb, lens.focal_px, lens.centre, baseline_lb_m)
-    problem = _Problem(lens, tracks, baseline_lr_m, baseline_lb_m, n_terms, 1.0 / z0)
-    p0 = _initial(problem, rect, back_rotvec)
+    problem = Problem(lens, tracks, baseline_lr_m, baseline_lb_m, n_terms, 1.0 / z0)
+    p0 = initial(problem, rect, back_rotvec)
     scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
     opts = dict(x_scale=scales, diff_step=1e-6, method="trf",
-                bounds=_bounds(p0, n_terms, baseline_lb_m))
+                bounds=bounds(p0, n_terms, baseline_lb_m))
     fit = least_squares(problem.residuals, p0, **opts)
     fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
     fitted = problem.distortion(fit.x)
     corner_sigma, noise_sigma, offset_sigma, cov, inflation = _lens_sigmas(
-        fit, problem, lens, principal_point_sigma_px, blocks
+        fit.x, problem, lens, principal_point_sigma_px, blocks
     )
     err = np.linalg.norm(problem.residuals(fit.x).reshape(-1, 2), axis=1)
     # Noise in the tracks (heat shimmer above all) and the views' unknown principal
     # points move the fit even when the given lens is right: a change the views cannot
     # tell from them is not taken (on field scenes without distortion, weighing the
     # noise alone at 2 sigma took a lens in 4 of 9 runs and biased depth by 0.7 %).
-    significant = _significant(fit.x[:n_terms], cov)
+    significant = significant_change(fit.x[:n_terms], cov, SIGNIFICANCE)
     result = LensFit(
         distortion=fitted if significant else lens.distortion,
         start=lens.distortion,
@@ -379,36 +267,85 @@ def _fit_terms(
         rms_px=float(np.sqrt(np.mean(err[err < 3.0] ** 2))),
         corner_noise_sigma_px=noise_sigma,
     )
-    return _TermsFit(result, problem, fit.x, opts, inflation, principal_point_sigma_px)
+    return _TermsFit(result, problem, fit.x, opts, inflation, principal_point_sigma_px, blocks)
 
 
 def _fit_centres(
-    problem: _Problem, x: np.ndarray, opts: dict, prior_px: float, inflation: float,
-    fixed_terms: int = 0,
+    problem: Problem, x: np.ndarray, opts: dict, prior_px: float, inflation: float,
+    blocks: int, fixed_terms: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The fit again from ``x`` with each view's centre of distortion free, each held to
-    the image centre by a Gaussian prior of ``prior_px`` (one standard deviation per
-    axis), the first ``fixed_terms`` radial terms held as they are in ``x``: the outer
-    parameters (P,) and the centres (3, 2) px. The prior enters as residual rows
-    weighed as a maximum a posteriori fit would weigh them against the tracks: their
-    scatter (robust RMS) times the square root of ``inflation``, how much more the fit
-    moves than independent errors would move it (heat shimmer moves whole patches of
-    tracks together; :func:`_lens_sigmas`). Without shimmer the views settle the
-    centres to a few px (truths 10-45 px off the image centre; docs/results-log.md); in
-    shimmer the prior holds them near the image centre."""
+    """The fit again from ``x`` with each view's centre free, each held to the image
+    centre by a Gaussian prior of ``prior_px`` (one standard deviation per axis), the
+    first ``fixed_terms`` radial terms held as they are in ``x``: the outer parameters
+    (P,) and the centres (3, 2) px. The prior enters as residual rows weighed as a
+    maximum a posteriori fit would weigh them against the tracks: their scatter (robust
+    RMS) times the square root of ``inflation``, how much more the fit moves than
+    independent errors would move it (heat shimmer moves whole patches of tracks
+    together). A first fit weighs it by the bend's inflation (:func:`_lens_sigmas`) and
+    the residuals with every centre at the image centre; a second, from the start
+    again, by the centres' own inflation (:func:`_centre_inflation`) and the residuals,
+    both of the first fit: centres assumed wrong leave residuals of their own, and
+    weighed by those the prior held the centres short (on exact projections the depth
+    scale stayed 0.03-0.13 % off after the first fit, <= 0.007 % after the second;
+    issue 35). Without shimmer the views settle the centres to a few px; in shimmer
+    the prior holds them near the image centre."""
+    weight = _prior_weight(problem, x, prior_px, inflation)
+    first, centres = _fit_centres_once(problem, x, opts, prior_px, weight, fixed_terms)
+    inflation = _centre_inflation(problem, first, blocks)
+    if np.isfinite(inflation):  # else too few tracks explained to say: keep the first
+        weight = _prior_weight(problem, first, prior_px, inflation)
+        problem.centres = np.zeros((3, 2))  # from the start again: from the first's
+        # optimum its steps stalled at once on a field frame (a rough Jacobian there)
+        return _fit_centres_once(problem, x, opts, prior_px, weight, fixed_terms)
+    return first, centres
+
+
+def _prior_weight(problem: Problem, x: np.ndarray, prior_px: float, inflation: float) -> float:
+    """The prior rows' weight in :func:`_fit_centres` at the fit ``x``."""
     scatter = 1.4826 * float(np.median(np.abs(problem.residuals(x))))
-    weight = scatter * np.sqrt(max(inflation, 1.0)) / prior_px
+    return scatter * np.sqrt(max(inflation, 1.0)) / prior_px
+
+
+def _centre_inflation(problem: Problem, x: np.ndarray, blocks: int) -> float:
+    """How much more the views' centres (those ``problem`` holds) move at the fit ``x``
+    than independent errors would move them: the largest ratio, over the six, of the
+    cluster-robust variance (``blocks`` x ``blocks`` blocks) to the independent one, at
+    least 1; inf where the fit explains too few tracks to say."""
+    J, r, inlier = plain_jacobian(problem, x, centres=True)
+    if inlier.sum() < MIN_TRACKS:
+        return float("inf")
+    try:
+        iid = np.linalg.inv(J.T @ J) * float(r @ r) / max(r.size - J.shape[1] - inlier.sum(), 1)
+        labels = np.repeat(spatial_blocks(problem.pl[inlier], blocks), 4)
+        clustered = cluster_covariance(J, r, labels, int(inlier.sum()))
+    except np.linalg.LinAlgError:
+        return float("inf")
+    return max(1.0, float(np.max(np.diag(clustered)[-6:] / np.diag(iid)[-6:])))
+
+
+def _fit_centres_once(
+    problem: Problem, x: np.ndarray, opts: dict, prior_px: float, weight: float,
+    fixed_terms: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One maximum a posteriori fit of :func:`_fit_centres`, from ``x`` and the centres
+    ``problem`` holds, the prior's rows weighed by ``weight`` (1/px)."""
     held = x[:fixed_terms]
 
     def residuals(q: np.ndarray) -> np.ndarray:
         problem.centres = q[-6:].reshape(3, 2)
-        return np.concatenate([problem.residuals(np.concatenate([held, q[:-6]])),
-                               q[-6:] * weight])
+        r = problem.residuals(np.concatenate([held, q[:-6]])) / LOSS_SCALE_PX
+        # The tracks' rows under the robust (Cauchy) loss, as a square root of it; the
+        # prior's rows stay quadratic. Under the loss they had stopped pulling past
+        # ~0.3 px / weight (~7 px on field frames), and shimmer ran a centre 73 px off.
+        robust = np.sign(r) * np.sqrt(np.log1p(r * r)) * LOSS_SCALE_PX
+        return np.concatenate([robust, q[-6:] * weight])
 
     lower, upper = (b[fixed_terms:] for b in opts["bounds"])
     fit = least_squares(
-        residuals, np.concatenate([x[fixed_terms:], problem.centres.ravel()]), loss="cauchy",
-        f_scale=LOSS_SCALE_PX, diff_step=opts["diff_step"], method="trf",
+        residuals, np.concatenate([x[fixed_terms:], problem.centres.ravel()]), method="trf",
+        # A centre's step 1e-3 px or more (the residuals are nearly linear in it): at the
+        # outer parameters' 1e-6 it was a millionth of a px, the depths' own tolerance.
+        diff_step=np.r_[np.full(len(x) - fixed_terms, opts["diff_step"]), np.full(6, 1e-3)],
         x_scale=np.concatenate([opts["x_scale"][fixed_terms:], np.full(6, 10.0)]),
         bounds=(np.concatenate([lower, np.full(6, -MAX_CENTRE_SIGMAS * prior_px)]),
                 np.concatenate([upper, np.full(6, MAX_CENTRE_SIGMAS * prior_px)])),
@@ -447,21 +384,8 @@ def refine_lens(
                    start_corner_px=first.result.start_corner_px, start_rejected=True)
 
 
-def _significant(change: np.ndarray, cov: np.ndarray) -> bool:
-    """Whether the radial terms' ``change`` (n,) from the start is more than their
-    covariance (n, n) explains: Mahalanobis distance against the chi-square quantile
-    ``SIGNIFICANCE`` with n degrees of freedom."""
-    try:
-        distance = float(change @ np.linalg.solve(cov, change))
-    except np.linalg.LinAlgError:
-        return False
-    # chdtri(k, q): the chi-square quantile with k degrees of freedom exceeded with
-    # probability q (scipy.special: scipy.stats would add 0.25 s to every command's start)
-    return bool(np.isfinite(distance) and distance > chdtri(len(change), 1 - SIGNIFICANCE))
-
-
 def _lens_sigmas(
-    fit, problem: _Problem, lens: Lens, principal_point_sigma_px: float, blocks: int
+    x: np.ndarray, problem: Problem, lens: Lens, principal_point_sigma_px: float, blocks: int
 ) -> tuple[float, float, float, np.ndarray, float]:
     """Standard errors of the corner shift (px), of its part from the tracks' noise
     alone (px), and of the disparity offset (px) that the radial terms' uncertainty
@@ -486,7 +410,7 @@ def _lens_sigmas(
     n = problem.n_terms
     # Each term is the fraction of the corner radius it moves the corner by.
     grad = np.full(n, corner_radius(lens) * lens.focal_px)
-    Jp, rp, inlier = _plain_jacobian(problem, fit.x)
+    Jp, rp, inlier = plain_jacobian(problem, x)
     if inlier.sum() < MIN_TRACKS:
         # The fit explains too few tracks to say how well: as when too few are seen
         # by all three views, it is not taken and the given lens is kept.
@@ -500,7 +424,7 @@ def _lens_sigmas(
         iid = np.linalg.inv(Jp.T @ Jp) * float(rp @ rp) / dof
         try:
             labels = np.repeat(spatial_blocks(problem.pl[inlier], blocks), 4)
-            clustered = _cluster_covariance(Jp, rp, labels, int(inlier.sum()))
+            clustered = cluster_covariance(Jp, rp, labels, int(inlier.sum()))
         except np.linalg.LinAlgError:  # a block the fit cannot do without
             clustered = iid
         noise = max(iid, clustered, key=lambda c: float(grad @ c[:n, :n] @ grad))
@@ -516,43 +440,3 @@ def _lens_sigmas(
     independent = float(grad @ iid[:n, :n] @ grad)
     inflation = corner_noise**2 / independent if independent > 0 else float("inf")
     return corner, corner_noise, lens.focal_px * offset, terms, inflation
-
-
-def _plain_jacobian(problem: _Problem, p: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The residuals' plain (not loss-weighted) Jacobian and the residuals themselves,
-    on the tracks within ``INLIER_PX`` of the fit, by forward differences like the
-    fit's own: (4 M, P), (4 M,) and the (N,) bool mask of those M tracks."""
-    r0 = problem.residuals(p)
-    inlier = np.abs(r0).reshape(-1, 4).max(axis=1) < INLIER_PX
-    J = np.empty((r0.size, p.size))
-    for k in range(p.size):
-        step = np.zeros(p.size)
-        step[k] = 1e-6 * max(1.0, abs(p[k]))
-        J[:, k] = (problem.residuals(p + step) - r0) / step[k]
-    problem.residuals(p)  # leave the depths at the solution
-    rows = np.repeat(inlier, 4)
-    return J[rows], r0[rows], inlier
-
-
-def _cluster_covariance(
-    J: np.ndarray, r: np.ndarray, labels: np.ndarray, eliminated: int
-) -> np.ndarray:
-    """Cluster-robust ("sandwich") covariance of a least-squares fit with Jacobian J
-    (n, P) and residuals r (n,) whose errors may be correlated within each cluster of
-    ``labels`` but not between them (Liang and Zeger, 1986), in the form that equals a
-    delete-one-cluster jackknife to first order ("CR3", Bell and McCaffrey, 2002): each
-    cluster's residuals are first divided by (I - its block of the hat matrix), since
-    the fit has pulled itself towards them. The residuals are also smaller than the
-    errors by the ``eliminated`` parameters solved for inside (a depth per track): the
-    n / (n - eliminated) factor. On tracks with shimmer-like noise this matched the
-    spread of the fit over 40 draws (0.33 against 0.32 px at the corner; taking the
-    residuals as independent gave 0.19 px)."""
-    bread = np.linalg.inv(J.T @ J)
-    scores = []
-    for c in np.unique(labels):
-        Jc, rc = J[labels == c], r[labels == c]
-        leverage = Jc @ bread @ Jc.T
-        scores.append(Jc.T @ np.linalg.solve(np.eye(len(rc)) - leverage, rc))
-    g, n = len(scores), len(r)
-    meat = np.einsum("ci,cj->ij", scores, scores) * (g - 1) / g * n / max(n - eliminated, 1)
-    return bread @ meat @ bread

@@ -41,6 +41,11 @@ class Lens:
         return self.distortion == NO_DISTORTION and self.shift == (0.0, 0.0)
 
     @property
+    def pinhole(self) -> bool:
+        """No bend: the maps are at most a translation by ``shift``."""
+        return self.distortion == NO_DISTORTION
+
+    @property
     def image_centre(self) -> np.ndarray:
         """(2,) px: the centre of the recorded image, the ideal pixels' principal point."""
         return np.array([(self.size[0] - 1) / 2, (self.size[1] - 1) / 2])
@@ -52,16 +57,16 @@ class Lens:
 
     def to_ideal(self, pts: np.ndarray) -> np.ndarray:
         """Recorded pixels (N, 2) float64 (u, v) -> ideal pinhole pixels (N, 2)."""
-        if self.identity:
-            return pts
+        if self.pinhole:
+            return pts if self.identity else pts - np.array(self.shift)
         n = (pts - self.centre) / self.focal_px
         x, y = undistort(n[:, 0], n[:, 1], self.distortion)
         return np.stack([x, y], axis=1) * self.focal_px + self.image_centre
 
     def to_recorded(self, pts: np.ndarray) -> np.ndarray:
         """Ideal pinhole pixels (..., 2) float64 -> recorded pixels (..., 2)."""
-        if self.identity:
-            return pts
+        if self.pinhole:
+            return pts if self.identity else pts + np.array(self.shift)
         n = (pts - self.image_centre) / self.focal_px
         x, y = distort(n[..., 0], n[..., 1], self.distortion)
         return np.stack([x, y], axis=-1) * self.focal_px + self.centre
@@ -69,12 +74,13 @@ class Lens:
     def ideal_rows(self, r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
         """Ideal positions of the recorded pixels of rows ``r0:r1``, all columns: (u, v),
         float64, broadcastable to (r1 - r0, W) (see :func:`smooth_map`). Without
-        distortion they are the pixel indices themselves, a (1, W) row of u and a
-        (r1 - r0, 1) column of v, so that callers do per-pixel work only where needed."""
+        distortion they are the pixel indices themselves less the shift, a (1, W) row of
+        u and a (r1 - r0, 1) column of v, so that callers do per-pixel work only where
+        needed."""
         w = self.size[0]
-        if self.identity:
+        if self.pinhole:
             u, v = np.arange(w, dtype=np.float64), np.arange(r0, r1, dtype=np.float64)
-            return u[None, :], v[:, None]
+            return u[None, :] - self.shift[0], v[:, None] - self.shift[1]
         return smooth_map(self.to_ideal, (0, w), (r0, r1))
 
 

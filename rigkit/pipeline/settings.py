@@ -31,10 +31,11 @@ class PipelineSettings:
     offset (a block jackknife) and of the fitted lens (cluster-robust), which heat
     shimmer's patch-wise errors would otherwise make too small;
     ``principal_point_sigma`` how far (one standard deviation, as a fraction of the
-    image width) each view's principal point may sit from the image centre, which the
-    pipeline assumes: its effect is added to the standard errors of the offset and of
-    the fitted lens (0: the views share one principal point, e.g. one camera moved
-    between positions).
+    image width) each view's principal point may sit from the image centre: the prior
+    under which the lens stage fits each view's principal point from the three views
+    and takes it out (:mod:`rigkit.pipeline.distortion`); its spread is also added to
+    the standard errors of the offset and of the fitted lens (0: every principal point
+    at the image centre, nothing fitted and nothing added).
     Views that disagree: ``min_agreement`` the zero-mean normalised cross-correlation
     over ``agreement_window_px`` (stereo px) below which the right or the back view
     contradicts a depth (something moved between the captures): that pixel and

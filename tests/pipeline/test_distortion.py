@@ -13,11 +13,9 @@ from scipy.optimize import least_squares
 
 from rigkit.geometry import Camera, euler_to_matrix, focal_from_fov, intrinsics
 from rigkit.pipeline.ambiguity import back_view_start, spatial_blocks
+from rigkit.pipeline.bundle import Problem, corner_radius, initial
+from rigkit.pipeline.covariance import cluster_covariance
 from rigkit.pipeline.distortion import (
-    _cluster_covariance,
-    _initial,
-    _Problem,
-    corner_radius,
     corner_shift_px,
     fit_distortion,
     refine_lens,
@@ -164,7 +162,7 @@ def test_cluster_covariance_sees_errors_shared_within_blocks() -> None:
         beta, *_ = np.linalg.lstsq(J, errors, rcond=None)
         r = errors - J @ beta
         slopes.append(beta[1])
-        robust.append(np.sqrt(_cluster_covariance(J, r, labels, 0)[1, 1]))
+        robust.append(np.sqrt(cluster_covariance(J, r, labels, 0)[1, 1]))
         independent.append(np.sqrt(np.linalg.inv(J.T @ J)[1, 1] * (r @ r) / (len(r) - 2)))
     spread = np.std(slopes)
     assert np.mean(robust) == pytest.approx(spread, rel=0.15)
@@ -199,8 +197,8 @@ def test_the_offsets_share_is_how_far_a_wrong_lens_moves_the_yaw() -> None:
     fit = _fit(m_lr, m_lb)
     lens = Lens(F, (W, H), (0.0,) * 5)
     z0, back_rotvec = back_view_start(m_lb, F, lens.centre, 2.0)
-    problem = _Problem(lens, three_view_tracks(m_lr, m_lb), 2.0, 2.0, 1, 1 / z0)
-    start = _initial(problem, pseudo_rectify(m_lr, F, (W, H)), back_rotvec)
+    problem = Problem(lens, three_view_tracks(m_lr, m_lb), 2.0, 2.0, 1, 1 / z0)
+    start = initial(problem, pseudo_rectify(m_lr, F, (W, H)), back_rotvec)
     p = least_squares(problem.residuals, start, x_scale=1e-3, diff_step=1e-6).x
 
     def yaw(k1_term: float) -> float:  # the right camera's yaw, the lens held at k1_term

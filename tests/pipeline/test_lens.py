@@ -30,6 +30,19 @@ def test_ideal_rows_without_distortion_are_the_pixel_indices() -> None:
     assert u[0, 639] == 639 and v[0, 0] == 100 and v[63, 0] == 163
 
 
+def test_a_principal_point_without_a_bend_is_a_shift_of_every_map() -> None:
+    # A view's fitted principal point with no lens bend (issue 35): the maps are the
+    # shift, and the dense one stays a row and a column, as without any.
+    lens = Lens(66000.0, (640, 480), shift=(3.25, -7.5))
+    assert lens.pinhole and not lens.identity
+    pts = np.array([[0.0, 0.0], [639.0, 479.0], [100.5, 200.25]])
+    assert np.allclose(lens.to_ideal(pts), pts - [3.25, -7.5])
+    assert np.allclose(lens.to_recorded(lens.to_ideal(pts)), pts)
+    u, v = lens.ideal_rows(100, 164)
+    assert u.shape == (1, 640) and v.shape == (64, 1)
+    assert u[0, 639] == 639 - 3.25 and v[0, 0] == 100 + 7.5
+
+
 def test_a_view_bent_about_its_own_centre_maps_to_a_centred_pinhole() -> None:
     # The camera's principal point (its centre of distortion) 20 px right and 12 px up
     # of the image centre: that point is the ideal image's centre, the ideal pixels

@@ -35,6 +35,15 @@ def _true_correspondences(truth, view: str, n: int = 4000, seed: int = 0):
     return np.stack([u, v], 1)[ok], uv[ok], z[ok]
 
 
+def _ideal(result, view: int, pts: np.ndarray) -> np.ndarray:
+    """Recorded pixels (N, 2) of view ``view`` (0 left, 1 right, 2 back) as the pipeline's
+    later stages see them: through the lens fitted from the views, which takes each
+    view's principal point out (rigkit.pipeline.lens)."""
+    h, w = result.depth.shape
+    lens = result.lens_fit.lens(result.rectification.K[0, 0], (w, h), view)
+    return lens.to_ideal(pts)
+
+
 def test_matches_are_subpixel_accurate(truth, images) -> None:
     m = match_views(images["left"], images["back"], "left/back")
     left, back = truth.cameras["left"], truth.cameras["back"]
@@ -51,6 +60,7 @@ def test_matches_are_subpixel_accurate(truth, images) -> None:
 
 def test_rectification_puts_true_correspondences_on_one_row(truth, result) -> None:
     pl, pr, _ = _true_correspondences(truth, "right")
+    pl, pr = _ideal(result, 0, pl), _ideal(result, 1, pr)
     r = result.rectification
     rows = apply_homography(r.H_left, pl)[:, 1] - apply_homography(r.H_right, pr)[:, 1]
     assert len(rows) > 1000
@@ -63,6 +73,7 @@ def test_rectification_puts_true_correspondences_on_one_row(truth, result) -> No
 
 def test_stereo_disparity_matches_true_rectified_disparity(truth, result) -> None:
     pl, pr, _ = _true_correspondences(truth, "right")
+    pl, pr = _ideal(result, 0, pl), _ideal(result, 1, pr)
     r = result.rectification
     xl, xr = apply_homography(r.H_left, pl), apply_homography(r.H_right, pr)
     s = result.disparity_scale
@@ -77,6 +88,7 @@ def test_stereo_disparity_matches_true_rectified_disparity(truth, result) -> Non
 def test_ambiguity_removal_recovers_metric_scale(truth, result, rig) -> None:
     """With the true rectified disparity, the fitted offset gives the true depth."""
     pl, pr, z = _true_correspondences(truth, "right")
+    pl, pr = _ideal(result, 0, pl), _ideal(result, 1, pr)
     r = result.rectification
     xl, xr = apply_homography(r.H_left, pl), apply_homography(r.H_right, pr)
     zt = triangulate_z(r, xl[:, 0], xl[:, 0] - xr[:, 0], result.ambiguity.beta, rig.baseline_lr_m)

@@ -1,0 +1,173 @@
+"""The three-view bundle adjustment the lens stage fits (:mod:`rigkit.pipeline.distortion`):
+corners tracked from the left view into the right and back ones, one lens, and each
+view's principal point.
+
+By variable projection (Golub and Pereyra): every track has one unknown inverse depth,
+solved for inside; the outer parameters are the lens's radial increments, the right
+camera's baseline angle and rotation, and the back camera's rotation and sideways and
+vertical offset. Each view's centre (its principal point, the centre of its bend) is
+held in :attr:`Problem.centres`, fitted by the lens stage under a prior.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from rigkit.geometry import Distortion, distort, rotvec_to_matrix, undistort
+from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.rectify import Rectification
+
+MAX_BASELINE_TURN_RAD = 0.2  # how far the fit may turn the rectification's baseline
+MAX_DEPTH_STEPS = 8
+DEPTH_TOL_PX = 1e-6  # far below what the outer finite differences resolve (~1e-3 px)
+INLIER_PX = 1.0  # tracks within this of the fit count in the standard errors
+CENTRE_STEP_PX = 1e-2  # finite-difference step of a view's centre (the residuals are ~linear)
+
+
+def corner_radius(lens: Lens) -> float:
+    """The image corner's distance from the centre, normalised (r / f)."""
+    w, h = lens.size
+    return float(np.hypot(w - 1, h - 1) / 2 / lens.focal_px)
+
+
+class Problem:
+    """The bundle adjustment by variable projection (Golub and Pereyra): the outer
+    parameters are ``n_terms`` radial increments (as the fraction of the corner radius
+    they move the corner by), the right camera's baseline angle and rotation vector, and
+    the back camera's rotation vector and (x, y) offset (m); each track's inverse depth
+    is solved for inside, so the outer problem has a handful of unknowns and the
+    yaw/depth trade-off cannot slow it down."""
+
+    def __init__(self, lens, tracks, c_lr, c_lb, n_terms, w0):
+        self.lens, self.n_terms = lens, n_terms
+        self.c_lr, self.c_lb = c_lr, c_lb
+        self.pl, self.pr, self.pb = tracks
+        self.rc = corner_radius(lens)
+        self.w = np.full(len(self.pl), w0)
+        self.centres = np.zeros((3, 2))  # each view's centre of distortion, px from lens.centre
+
+    def distortion(self, p: np.ndarray) -> Distortion:
+        k = list(self.lens.distortion)
+        for j in range(self.n_terms):
+            k[j if j < 2 else 4] += p[j] / self.rc ** (2 * (j + 1))
+        return (k[0], k[1], k[2], k[3], k[4])
+
+    def _setup(self, p: np.ndarray):
+        """Per-parameter constants: the lens, and per other view the left rays (N, 3)
+        rotated into it, its rotated centre and the positions it saw."""
+        n = self.n_terms
+        d = self.distortion(p)
+        nl = (self.pl - self.lens.centre - self.centres[0]) / self.lens.focal_px
+        x, y = undistort(nl[:, 0], nl[:, 1], d)
+        rays = np.stack([x, y, np.ones_like(x)], axis=1)
+        phi = p[n]
+        c_r = self.c_lr * np.array([np.cos(phi), np.sin(phi), 0.0])
+        c_b = np.array([p[n + 7], p[n + 8], -self.c_lb])
+        views = []
+        # A view's centre moved by c moves its image as a turn by c / f nearly does; each
+        # rotation is taken about the views' centres (the turn that moves the image centre
+        # by c: rotation vector (-c_y, c_x, 0) / f), so that a centre's own column holds
+        # what no turn does. Without it the fit crawled along that valley and stopped
+        # tens of px short, its gradient far from zero.
+        f = self.lens.focal_px
+        left = turn(self.centres[0] / f)
+        for rv, c, seen, centre in ((p[n + 1 : n + 4], c_r, self.pr, self.centres[1]),
+                                    (p[n + 4 : n + 7], c_b, self.pb, self.centres[2])):
+            R = turn(-centre / f) @ rotvec_to_matrix(rv) @ left
+            views.append((rays @ R.T, R @ c, seen, self.lens.centre + centre))
+        return d, views
+
+    def _track_residuals(self, setup, w: np.ndarray) -> np.ndarray:
+        """(N, 4): right (u, v) and back (u, v) reprojection errors, px, for inverse
+        depths ``w`` (1/m). The point ray / w seen from centre c projects as
+        R ray - w R c (up to scale)."""
+        d, views = setup
+        out = []
+        for rays, Rc, seen, centre in views:
+            Xc = rays - w[:, None] * Rc
+            x, y = distort(Xc[:, 0] / Xc[:, 2], Xc[:, 1] / Xc[:, 2], d)
+            uv = np.stack([x, y], axis=1) * self.lens.focal_px + centre
+            out.append(uv - seen)
+        return np.concatenate(out, axis=1)
+
+    def residuals(self, p: np.ndarray) -> np.ndarray:
+        setup = self._setup(p)
+        w = self.w  # warm start: the last call's depths are within a step of these
+        r = self._track_residuals(setup, w)
+        for _ in range(MAX_DEPTH_STEPS):  # Gauss-Newton per track, nearly linear in w
+            h = 1e-3 * w  # nearly linear: a wide step is exact and far above rounding
+            J = (self._track_residuals(setup, w + h) - r) / h[:, None]
+            step = -(J * r).sum(axis=1) / np.maximum((J * J).sum(axis=1), 1e-300)
+            w = w + step
+            r = self._track_residuals(setup, w)
+            # Converged when the residuals (but those of a few hopeless tracks, which
+            # the robust loss ignores) move by less than DEPTH_TOL_PX.
+            moved = np.abs(step) * np.sqrt((J * J).sum(axis=1))
+            if np.percentile(moved, 99) < DEPTH_TOL_PX:
+                break
+        self.w = w
+        return r.ravel()
+
+
+def turn(shift: np.ndarray) -> np.ndarray:
+    """The rotation that moves the image centre by ``shift`` (2,) (normalised units)."""
+    return rotvec_to_matrix(np.array([-shift[1], shift[0], 0.0]))
+
+
+def initial(
+    problem: Problem, rect: Rectification, back_rotvec: np.ndarray
+) -> np.ndarray:
+    """Start: the rectification's right rotation and baseline angle, the back view's
+    rotation from its coarse affine map (:func:`~rigkit.pipeline.ambiguity.back_view_start`)."""
+    baseline = rect.R_rect.T @ np.array([1.0, 0.0, 0.0])
+    rv, _ = cv2.Rodrigues(rect.R_lr.T)
+    return np.concatenate(
+        [
+            np.zeros(problem.n_terms),
+            [np.arctan2(baseline[1], baseline[0])],
+            rv.ravel(),
+            back_rotvec,
+            [0.0, 0.0],
+        ]
+    )
+
+
+def bounds(p0: np.ndarray, n_terms: int, baseline_lb_m: float) -> tuple[np.ndarray, ...]:
+    """Bounds on the parameters (lower, upper): the right camera's baseline direction
+    within ``MAX_BASELINE_TURN_RAD`` of the rectification's (which the left/right rows
+    settle), the back camera's sideways and vertical offset under its distance
+    behind; the rest free. Without them, on one field scene the first (plain) pass let
+    bad tracks turn the baseline by 92 deg and lift the back camera 4 m, a minimum the
+    robust pass did not leave (the corner's sigma 18 px, the offset's 73 % of depth;
+    docs/results-log.md)."""
+    lower, upper = np.full(p0.size, -np.inf), np.full(p0.size, np.inf)
+    phi = n_terms
+    lower[phi], upper[phi] = p0[phi] - MAX_BASELINE_TURN_RAD, p0[phi] + MAX_BASELINE_TURN_RAD
+    lower[-2:], upper[-2:] = -baseline_lb_m, baseline_lb_m
+    return lower, upper
+
+
+def plain_jacobian(
+    problem: Problem, p: np.ndarray, centres: bool = False
+) -> tuple[np.ndarray, ...]:
+    """The residuals' plain (not loss-weighted) Jacobian and the residuals themselves,
+    on the tracks within ``INLIER_PX`` of the fit, by forward differences like the
+    fit's own: (4 M, P), (4 M,) and the (N,) bool mask of those M tracks; with
+    ``centres``, six more columns at the end for the views' centres."""
+    r0 = problem.residuals(p)
+    inlier = np.abs(r0).reshape(-1, 4).max(axis=1) < INLIER_PX
+    held = problem.centres.copy()
+    J = np.empty((r0.size, p.size + (6 if centres else 0)))
+    for k in range(J.shape[1]):
+        step = np.zeros(p.size)
+        if k < p.size:
+            step[k] = 1e-6 * max(1.0, abs(p[k]))
+            J[:, k] = (problem.residuals(p + step) - r0) / step[k]
+        else:
+            problem.centres = held + CENTRE_STEP_PX * (np.arange(6) == k - p.size).reshape(3, 2)
+            J[:, k] = (problem.residuals(p) - r0) / CENTRE_STEP_PX
+    problem.centres = held
+    problem.residuals(p)  # leave the depths at the solution
+    rows = np.repeat(inlier, 4)
+    return J[rows], r0[rows], inlier
