@@ -21,12 +21,6 @@ class RigGeometry:
     baseline_lr_m: float
     baseline_lb_m: float
     distortion: Distortion = NO_DISTORTION
-    principal_point_px: tuple[float, float] = (0.0, 0.0)
-    """The left camera's principal point, (x right, y down) px from the image centre,
-    where the rig profile gives one (:func:`rigkit.rig.camera.intrinsics`)."""
-    one_camera: bool = False
-    """One camera moved between the three positions: the views share one principal
-    point. False: three cameras, each with its own."""
 
     def __post_init__(self) -> None:
         for name in ("focal_px", "baseline_lr_m", "baseline_lb_m"):
