@@ -8,6 +8,8 @@ copies them into the session (:func:`rigkit.capture.field.add_position_frame`).
 
 from __future__ import annotations
 
+import os
+import stat
 import threading
 import time
 from collections.abc import Iterator
@@ -76,7 +78,10 @@ def unfiled(folder: Path, session: Session) -> list[Path]:
     closed, or that the operator left on it. A file counts as held where ``raw/`` has one
     of its name (or with a position's prefix, as ingest stores a second one) and size;
     one taken out of a position stays in ``raw/`` and is not offered again."""
-    began = datetime.fromisoformat(session.created_utc).timestamp() - CLOCK_ALLOWANCE_S
+    try:
+        began = datetime.fromisoformat(session.created_utc).timestamp() - CLOCK_ALLOWANCE_S
+    except ValueError:  # session.yaml is the user's to edit: a date it cannot read
+        began = float("-inf")
     raw = session.path / RAW_DIR
     found = []
     for path in folder.rglob("*"):
@@ -93,7 +98,10 @@ def unfiled(folder: Path, session: Session) -> list[Path]:
 
 
 def _same_size(path: Path, size: int) -> bool:
+    """Whether ``path`` is a regular file (not a link: the session folder is untrusted)
+    of ``size`` bytes."""
     try:
-        return path.stat().st_size == size
+        info = os.lstat(path)
     except OSError:
         return False
+    return stat.S_ISREG(info.st_mode) and info.st_size == size

@@ -94,3 +94,15 @@ async def test_frames_left_on_the_card_are_offered_again(demo: Demo) -> None:
                        "the offer gone")
     assert [Path(f.file).name for f in frames_at(load_session(session.path), "left")] == \
         ["DSCN0001.PNG"]
+
+
+def test_the_card_listing_counts_only_real_files_in_raw_and_survives_a_bad_date(
+        demo: Demo) -> None:
+    from rigkit.tui.watch import unfiled
+
+    session = create_session(demo.capture / "links", demo.rig)
+    card = write_frame(demo.card / "DSCN0009.PNG", demo.scene / "left.png")
+    (session.path / "raw").mkdir(exist_ok=True)
+    (session.path / "raw" / card.name).symlink_to(card)  # a link is not a frame held
+    assert unfiled(demo.card, session) == [card]
+    assert unfiled(demo.card, replace(session, created_utc="not a date")) == [card]
