@@ -119,6 +119,10 @@ def main() -> int:
     ap.add_argument("--set", type=synth_setting, action="append", default=[],
                     metavar="NAME=VALUE", help="a scene setting (a SynthParams field) over "
                     "the preset's, e.g. distance_m=500; repeat for several")
+    ap.add_argument("--three-cameras", action="store_true",
+                    help="do not tell the pipeline that one camera took a scene's views "
+                    "(--set one_camera=true; by default the rig says so, as a profile's "
+                    "one_camera: true does)")
     ap.add_argument("--burst", type=int, default=1,
                     help="frames per position, median-stacked (the time includes loading "
                     "and stacking)")
@@ -139,7 +143,8 @@ def main() -> int:
             write_scene(generate_scene(params, seed), d)
         truth = load_scene(d)
         lens = truth.cameras["left"].distortion if args.give_distortion else (0,) * 5
-        rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m, lens)
+        rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m, lens,
+                          one_camera=truth.params.one_camera and not args.three_cameras)
         t0 = time.perf_counter()
         imgs = [
             stack_burst([load_grey(p) for p in truth.frame_paths(v)], v)

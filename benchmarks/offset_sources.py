@@ -82,8 +82,7 @@ def analyse(scene_dir: Path) -> dict[str, float]:
 
     def offset(other: np.ndarray) -> float:
         amb = remove_ambiguity(replace(m, other=other), result.disparity,
-                               result.disparity_scale, rect, rig.baseline_lr_m,
-                               rig.baseline_lb_m, result.settings)
+                               result.disparity_scale, rect, rig, result.settings)
         return amb.offset_px
 
     error = -offset_error_px(truth, result.depth, rig.focal_px)

@@ -57,6 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lensfun", metavar="CAMERA:FOCAL_MM",
                    help="lens distortion from lensfun's profile of CAMERA's built-in lens at "
                    "the real focal length FOCAL_MM, e.g. 'Coolpix P1000:71.9'")
+    p.add_argument("--one-camera", action="store_true",
+                   help="one camera moved between the three positions (as --rig's "
+                   "one_camera: true): the views share one principal point, fitted once")
     p.add_argument("--fixed-lens", action="store_true",
                    help="use the given distortion as it is (default: refine it, or fit it "
                    "when none is given, from the three views)")

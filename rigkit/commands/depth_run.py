@@ -79,6 +79,8 @@ def _override(data: Any, args: argparse.Namespace) -> Any:
             given = baselines.get(name)
             tolerance = given.get("tolerance_m", 0.0) if isinstance(given, dict) else 0.0
             baselines[name] = {"value_m": value, "tolerance_m": tolerance}
+    if args.one_camera:
+        data["one_camera"] = True
     if args.fixed_lens:
         pipeline = data.get("pipeline")
         data["pipeline"] = {**(pipeline if isinstance(pipeline, dict) else {}),

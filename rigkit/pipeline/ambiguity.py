@@ -28,7 +28,10 @@ of the back principal point, times its prior spread, which is generous where the
 views settled the centres (in shimmer the prior holds them). Estimating the shift in
 this fit instead was tried: with clean matches it is recovered, but a single frame's
 shimmer leaves it uncertain by more than its prior, and the left view's centre, about
-which the back view turns, is not in this fit.
+which the back view turns, is not in this fit. One camera moved between the positions
+has no shift between its views: there the term is 0, and what the uncertainty of its one
+centre carries, the lens stage measures (:attr:`~rigkit.pipeline.distortion.LensFit.
+centre_offset_sigma_px`).
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ from rigkit.pipeline.checks import affine_scale, check_magnification
 from rigkit.pipeline.depth import rectified_rays, triangulate_z
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, apply_homography, scaling
+from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
 
 MIN_MATCHES = 30
@@ -162,12 +166,13 @@ def remove_ambiguity(
     disparity: np.ndarray,
     disparity_scale: float,
     rect: Rectification,
-    baseline_lr_m: float,
-    baseline_lb_m: float,
+    rig: RigGeometry,
     settings: PipelineSettings = DEFAULT,
 ) -> Ambiguity:
     """Fit the right camera's yaw correction from left/back ``matches`` (ideal pinhole
-    pixels, see :mod:`rigkit.pipeline.lens`).
+    pixels, see :mod:`rigkit.pipeline.lens`) of the ``rig``: its baselines, and whether
+    one camera took the views (then no shift between the back and the left principal
+    points is carried: :func:`_principal_point_beta_sigma`).
 
     disparity: (h, w) float32 on the ``disparity_scale``-resized rectified canvas, px,
     ``x_left - x_right``, NaN = unknown.
@@ -182,22 +187,24 @@ def remove_ambiguity(
             f"(need {MIN_MATCHES})"
         )
     xr, d, pb = xr[ok], d[ok], matches.other[ok]
-    fit, inl = _fit(matches, rect, xr, d, pb, baseline_lr_m, baseline_lb_m)
-    args = (rect, xr[inl], d[inl], pb[inl], baseline_lr_m, baseline_lb_m)
+    c_lr, c_lb = rig.baseline_lr_m, rig.baseline_lb_m
+    fit, inl = _fit(matches, rect, xr, d, pb, c_lr, c_lb)
+    args = (rect, xr[inl], d[inl], pb[inl], c_lr, c_lb)
     jack_sigma = _jackknife_beta_sigma(
         fit.x, args, matches.left[ok][inl], settings.jackknife_blocks
     )
     side = float(fit.x[4])
-    if abs(side) > MAX_BACK_SIDE * baseline_lr_m:
+    if abs(side) > MAX_BACK_SIDE * c_lr:
         # The back camera stands behind the left one. If it fits about C_lr to the
         # side, the "left" image came from the right camera: the parallax is reversed.
         raise PipelineError(
             f"left and right look swapped: the back camera fits {side:+.2f} m to the side "
-            f"of the given left camera (expected behind it, C_lr = {baseline_lr_m} m)"
+            f"of the given left camera (expected behind it, C_lr = {c_lr} m)"
         )
     f = rect.K[0, 0]
     noise_sigma = f * max(_least_squares_beta_sigma(fit), jack_sigma)
-    pp_sigma = f * _principal_point_beta_sigma(fit, settings.principal_point_sigma * _width(rect))
+    apart_px = 0.0 if rig.one_camera else settings.principal_point_sigma * _width(rect)
+    pp_sigma = f * _principal_point_beta_sigma(fit, apart_px)
     tilt_sigma = f * _tilt_beta_sigma(fit, pb[inl], rect.K[:2, 2], rect.row_stretch_sq)
     return Ambiguity(
         beta=float(fit.x[0]),

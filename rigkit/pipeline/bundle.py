@@ -6,10 +6,13 @@ By variable projection (Golub and Pereyra): every track has one unknown inverse 
 solved for inside; the outer parameters are the lens's radial increments, the right
 camera's baseline angle and rotation, and the back camera's rotation and sideways and
 vertical offset. Each view's centre (its principal point, the centre of its bend) is
-held in :attr:`Problem.centres`, fitted by the lens stage under a prior.
+held in :attr:`Problem.centres`, fitted by the lens stage under a prior, each on its
+own or, for one camera moved between the positions, as one (:class:`Centres`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -23,6 +26,33 @@ MAX_DEPTH_STEPS = 8
 DEPTH_TOL_PX = 1e-6  # far below what the outer finite differences resolve (~1e-3 px)
 INLIER_PX = 1.0  # tracks within this of the fit count in the standard errors
 CENTRE_STEP_PX = 1e-2  # finite-difference step of a view's centre (the residuals are ~linear)
+
+
+@dataclass(frozen=True)
+class Centres:
+    """How a fit may move the views' centres: ``given`` (3, 2) px from the image centre
+    (left, right, back), where the prior holds them, and ``basis`` (6, k): a step
+    ``q`` (k,) moves them to ``given + (basis @ q).reshape(3, 2)``. Three cameras move
+    each on its own (k = 6); one camera moved between the positions has one centre,
+    which moves as one (k = 2)."""
+
+    given: np.ndarray
+    basis: np.ndarray
+
+    @classmethod
+    def of(cls, given_px: object, one_camera: bool) -> Centres:
+        """For the views' ``given_px`` ((x, y) * 3, px from the image centre)."""
+        basis = np.tile(np.eye(2), (3, 1)) if one_camera else np.eye(6)
+        return cls(np.array(given_px, dtype=np.float64).reshape(3, 2), basis)
+
+    @property
+    def free(self) -> int:
+        """k: how many numbers the fit moves them by."""
+        return self.basis.shape[1]
+
+    def at(self, q: np.ndarray) -> np.ndarray:
+        """(3, 2) px: the centres moved by ``q`` (k,)."""
+        return self.given + (self.basis @ q).reshape(3, 2)
 
 
 def corner_radius(lens: Lens) -> float:
@@ -39,13 +69,14 @@ class Problem:
     is solved for inside, so the outer problem has a handful of unknowns and the
     yaw/depth trade-off cannot slow it down."""
 
-    def __init__(self, lens, tracks, c_lr, c_lb, n_terms, w0):
+    def __init__(self, lens, tracks, c_lr, c_lb, n_terms, w0, centres: np.ndarray):
         self.lens, self.n_terms = lens, n_terms
         self.c_lr, self.c_lb = c_lr, c_lb
         self.pl, self.pr, self.pb = tracks
         self.rc = corner_radius(lens)
         self.w = np.full(len(self.pl), w0)
-        self.centres = np.zeros((3, 2))  # each view's centre of distortion, px from lens.centre
+        # each view's centre of distortion (3, 2), px from lens.centre
+        self.centres = np.array(centres, dtype=np.float64)
 
     def distortion(self, p: np.ndarray) -> Distortion:
         k = list(self.lens.distortion)
@@ -149,23 +180,25 @@ def bounds(p0: np.ndarray, n_terms: int, baseline_lb_m: float) -> tuple[np.ndarr
 
 
 def plain_jacobian(
-    problem: Problem, p: np.ndarray, centres: bool = False
+    problem: Problem, p: np.ndarray, centres: np.ndarray | None = None
 ) -> tuple[np.ndarray, ...]:
     """The residuals' plain (not loss-weighted) Jacobian and the residuals themselves,
     on the tracks within ``INLIER_PX`` of the fit, by forward differences like the
     fit's own: (4 M, P), (4 M,) and the (N,) bool mask of those M tracks; with
-    ``centres``, six more columns at the end for the views' centres."""
+    ``centres``, a (6, k) basis of the views' centres' moves (:attr:`Centres.basis`),
+    k more columns at the end for them."""
     r0 = problem.residuals(p)
     inlier = np.abs(r0).reshape(-1, 4).max(axis=1) < INLIER_PX
     held = problem.centres.copy()
-    J = np.empty((r0.size, p.size + (6 if centres else 0)))
+    moves = np.zeros((6, 0)) if centres is None else centres
+    J = np.empty((r0.size, p.size + moves.shape[1]))
     for k in range(J.shape[1]):
         step = np.zeros(p.size)
         if k < p.size:
             step[k] = 1e-6 * max(1.0, abs(p[k]))
             J[:, k] = (problem.residuals(p + step) - r0) / step[k]
         else:
-            problem.centres = held + CENTRE_STEP_PX * (np.arange(6) == k - p.size).reshape(3, 2)
+            problem.centres = held + CENTRE_STEP_PX * moves[:, k - p.size].reshape(3, 2)
             J[:, k] = (problem.residuals(p) - r0) / CENTRE_STEP_PX
     problem.centres = held
     problem.residuals(p)  # leave the depths at the solution

@@ -31,9 +31,12 @@ principal point magnifies the view by about 1.5 * turn (rad) * delta / f, which 
 the back view's depth signal itself (1 deg about 40 px off: ~0.35 % of depth at
 300 m, lens or none). A bend adds a mismatch of its own (a 6 px corner bend, centres
 ~40 px apart: ~0.25 px). Each view's centre is therefore fitted (:func:`_fit_centres`),
-held to the image centre by a prior of ``principal_point_sigma_px``; the later stages
-take each view's out with its bend (:attr:`LensFit.centres_px`, :class:`Lens`), so that
-the back view's turn is about its true centre and a shift of it moves no depth.
+held by a prior of ``principal_point_sigma`` (of the image width) to the principal
+point the rig profile gives, else to the image centre; one camera moved between the
+positions has one centre, fitted once (:class:`~rigkit.pipeline.bundle.Centres`). The
+later stages take each view's out with its bend (:attr:`LensFit.centres_px`,
+:class:`Lens`), so that the back view's turn is about its true centre and a shift of
+it moves no depth.
 """
 
 from __future__ import annotations
@@ -45,11 +48,20 @@ from scipy.optimize import least_squares
 
 from rigkit.geometry import Distortion, distort
 from rigkit.pipeline.ambiguity import back_view_start, shift_sensitivity, spatial_blocks
-from rigkit.pipeline.bundle import Problem, bounds, corner_radius, initial, plain_jacobian
+from rigkit.pipeline.bundle import (
+    Centres,
+    Problem,
+    bounds,
+    corner_radius,
+    initial,
+    plain_jacobian,
+)
 from rigkit.pipeline.covariance import cluster_covariance, significant_change
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, pseudo_rectify
+from rigkit.pipeline.rig import CENTRED, RigGeometry
+from rigkit.pipeline.settings import PipelineSettings
 
 MIN_TRACKS = 50
 MAX_TRACKS = 1500  # enough for two global terms; the cost grows with the tracks
@@ -76,8 +88,11 @@ class LensFit:
     fit used; ``rms_px``: their reprojection RMS; ``start_rejected``: the views ruled
     out the given lens and this is the fit from no distortion (:func:`refine_lens`);
     ``centres_px``: ((x, y) left, right, back) px from the image centre to each view's
-    principal point, its centre of distortion (fitted where the views' principal points
-    may differ, else zeros).
+    principal point, its centre of distortion (fitted under the prior, else the rig's);
+    ``centre_offset_sigma_px``: the disparity offset's standard error that a fitted
+    shared centre's uncertainty carries (px; one camera moved between the positions,
+    whose centre the views settle; for three cameras the ambiguity stage carries the
+    centres' prior instead, and this is 0).
     """
 
     distortion: Distortion
@@ -92,7 +107,8 @@ class LensFit:
     rms_px: float
     corner_noise_sigma_px: float
     start_rejected: bool = False
-    centres_px: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 3
+    centres_px: tuple[tuple[float, float], ...] = CENTRED
+    centre_offset_sigma_px: float = 0.0
 
     def lens(self, focal_px: float, size: tuple[int, int], view: int) -> Lens:
         """The :class:`Lens` of view ``view`` (0 left, 1 right, 2 back) to use."""
@@ -126,6 +142,7 @@ class LensFit:
             "centres_px": {view: [round(c, 2) for c in centre]
                            for view, centre in zip(("left", "right", "back"), self.centres_px,
                                                    strict=True)},
+            "centre_offset_sigma_px": _number(self.centre_offset_sigma_px),
         }
 
 
@@ -154,32 +171,24 @@ def corner_shift_px(lens: Lens) -> float:
 
 
 def fit_distortion(
-    m_lr: Matches,
-    m_lb: Matches,
-    rect: Rectification,
-    lens: Lens,
-    baseline_lr_m: float,
-    baseline_lb_m: float,
-    n_terms: int = 1,
-    principal_point_sigma_px: float = 0.0,
-    blocks: int = 4,
+    m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, rig: RigGeometry,
+    settings: PipelineSettings,
 ) -> LensFit:
-    """Refine ``lens``'s radial terms (``n_terms``: 1 = k1, 2 = k1 and k2) from the
-    left/right and left/back matches (recorded px). ``rect`` is a rectification of
-    the pair under ``lens``, used only as the starting rotation. With fewer than
-    ``MIN_TRACKS`` corners seen in all three views the given lens is kept (``tracks``
-    says how many; ``corner_sigma_px`` is infinite).
+    """Refine ``lens``'s radial terms (``settings.distortion_terms``: 1 = k1, 2 = k1 and
+    k2) from the left/right and left/back matches (recorded px) of the ``rig``. ``rect``
+    is a rectification of the pair under ``lens``, used only as the starting rotation.
+    With fewer than ``MIN_TRACKS`` corners seen in all three views the given lens is
+    kept (``tracks`` says how many; ``corner_sigma_px`` is infinite).
 
-    ``principal_point_sigma_px``: how far (px, one standard deviation per axis) each
-    view's principal point may sit from the image centre the fit assumes. A right or
-    back view whose principal point differs from the left one's bends the tracks
-    like a lens would (the fit's bend was 1-16 % off with +-30 px between views); the
-    standard errors include that, as a consider term (see
-    :mod:`rigkit.pipeline.ambiguity`); whether the fit is taken depends on the noise
-    part alone. ``blocks``: spatial blocks per image side for the noise part's
-    cluster-robust estimate (:func:`_lens_sigmas`)."""
-    terms = _fit_terms(m_lr, m_lb, rect, lens, baseline_lr_m, baseline_lb_m, n_terms,
-                       principal_point_sigma_px, blocks)
+    ``settings.principal_point_sigma`` (of the image width, one standard deviation per
+    axis): how far each view's principal point may sit from the rig's
+    (:attr:`RigGeometry.principal_points_px`). A right or back view whose principal
+    point differs from the left one's bends the tracks like a lens would (the fit's
+    bend was 1-16 % off with +-30 px between views); the standard errors include that,
+    as a consider term (see :mod:`rigkit.pipeline.ambiguity`); whether the fit is taken
+    depends on the noise part alone. ``settings.jackknife_blocks``: spatial blocks per
+    image side for the noise part's cluster-robust estimate (:func:`_lens_sigmas`)."""
+    terms = _fit_terms(m_lr, m_lb, rect, lens, rig, settings, settings.distortion_terms)
     return terms.centred()
 
 
@@ -191,28 +200,32 @@ class _TermsFit:
     there was nothing to fit."""
 
     result: LensFit
+    centres: Centres
     problem: Problem | None = None
     x: np.ndarray | None = None
     opts: dict | None = None
     inflation: float = float("inf")
-    principal_point_sigma_px: float = 0.0
+    prior_px: float = 0.0
     blocks: int = 4
 
     def centred(self) -> LensFit:
-        """The result with each view's own centre, fitted with the terms where the fit
-        is taken, under the given terms where those stand (no bend included); as it is
-        where the views share one principal point."""
+        """The result with each view's own centre (one camera's, shared), fitted with
+        the terms where the fit is taken, under the given terms where those stand (no
+        bend included); the rig's where no prior lets them move."""
         r, problem = self.result, self.problem
         if (problem is None or self.x is None or self.opts is None
-                or self.principal_point_sigma_px <= 0 or not np.isfinite(self.inflation)):
+                or self.prior_px <= 0 or not np.isfinite(self.inflation)):
             return r
         n = problem.n_terms
         start = self.x.copy()
         if not r.significant:
             start[:n] = 0.0
-        x, centres = _fit_centres(problem, start, self.opts, self.principal_point_sigma_px,
-                                  self.inflation, self.blocks, 0 if r.significant else n)
-        centred = replace(r, centres_px=tuple((float(u), float(v)) for u, v in centres))
+        x, q = _fit_centres(problem, start, self.opts, self.centres, self.prior_px,
+                            self.inflation, self.blocks, 0 if r.significant else n)
+        centres = self.centres.at(q)
+        centred = replace(r, centres_px=tuple((float(u), float(v)) for u, v in centres),
+                          centre_offset_sigma_px=_shared_centre_offset_sigma(
+                              problem, x, self.centres, self.prior_px))
         if not r.significant:
             return centred
         fitted = problem.distortion(x)
@@ -222,31 +235,36 @@ class _TermsFit:
 
 
 def _fit_terms(
-    m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, baseline_lr_m: float,
-    baseline_lb_m: float, n_terms: int, principal_point_sigma_px: float, blocks: int,
+    m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, rig: RigGeometry,
+    settings: PipelineSettings, n_terms: int,
 ) -> _TermsFit:
-    """The radial terms of :func:`fit_distortion` fitted and judged, every view bent
-    about the image centre."""
+    """``n_terms`` radial terms of :func:`fit_distortion` fitted and judged, every view
+    bent about the rig's principal point for it."""
+    centres = Centres.of(rig.principal_points_px, rig.one_camera)
+    given = tuple((float(u), float(v)) for u, v in centres.given)
     pl, pr, pb = three_view_tracks(m_lr, m_lb)
     if len(pl) < MIN_TRACKS:
         # Too little seen by all three views to tell: keep the given lens, and say so.
         corner = corner_shift_px(lens)
         return _TermsFit(LensFit(lens.distortion, lens.distortion, lens.distortion, False,
                                  corner, float("inf"), corner, 0.0, len(pl), float("nan"),
-                                 float("inf")))
+                                 float("inf"), centres_px=given), centres)
     keep = np.unique(np.linspace(0, len(pl) - 1, min(len(pl), MAX_TRACKS)).astype(int))
     tracks = (pl[keep], pr[keep], pb[keep])
-    z0, back_rotvec = back_view_start(m_lb, lens.focal_px, lens.centre, baseline_lb_m)
-    problem = Problem(lens, tracks, baseline_lr_m, baseline_lb_m, n_terms, 1.0 / z0)
+    c_lr, c_lb = rig.baseline_lr_m, rig.baseline_lb_m
+    z0, back_rotvec = back_view_start(m_lb, lens.focal_px, lens.centre, c_lb)
+    problem = Problem(lens, tracks, c_lr, c_lb, n_terms, 1.0 / z0, centres.given)
     p0 = initial(problem, rect, back_rotvec)
     scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
-    opts = dict(x_scale=scales, diff_step=1e-6, method="trf",
-                bounds=bounds(p0, n_terms, baseline_lb_m))
+    opts = dict(x_scale=scales, diff_step=1e-6, method="trf", bounds=bounds(p0, n_terms, c_lb))
     fit = least_squares(problem.residuals, p0, **opts)
     fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
     fitted = problem.distortion(fit.x)
+    prior_px, blocks = settings.principal_point_sigma * lens.size[0], settings.jackknife_blocks
+    # Views that share one centre do not bend apart: no consider term for the lens.
+    apart_px = 0.0 if rig.one_camera else prior_px
     corner_sigma, noise_sigma, offset_sigma, cov, inflation = _lens_sigmas(
-        fit.x, problem, lens, principal_point_sigma_px, blocks
+        fit.x, problem, lens, apart_px, blocks
     )
     err = np.linalg.norm(problem.residuals(fit.x).reshape(-1, 2), axis=1)
     # Noise in the tracks (heat shimmer above all) and the views' unknown principal
@@ -266,38 +284,40 @@ def _fit_terms(
         tracks=len(tracks[0]),
         rms_px=float(np.sqrt(np.mean(err[err < 3.0] ** 2))),
         corner_noise_sigma_px=noise_sigma,
+        centres_px=given,
     )
-    return _TermsFit(result, problem, fit.x, opts, inflation, principal_point_sigma_px, blocks)
+    return _TermsFit(result, centres, problem, fit.x, opts, inflation, prior_px, blocks)
 
 
 def _fit_centres(
-    problem: Problem, x: np.ndarray, opts: dict, prior_px: float, inflation: float,
-    blocks: int, fixed_terms: int = 0,
+    problem: Problem, x: np.ndarray, opts: dict, centres: Centres, prior_px: float,
+    inflation: float, blocks: int, fixed_terms: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The fit again from ``x`` with each view's centre free, each held to the image
-    centre by a Gaussian prior of ``prior_px`` (one standard deviation per axis), the
-    first ``fixed_terms`` radial terms held as they are in ``x``: the outer parameters
-    (P,) and the centres (3, 2) px. The prior enters as residual rows weighed as a
-    maximum a posteriori fit would weigh them against the tracks: their scatter (robust
-    RMS) times the square root of ``inflation``, how much more the fit moves than
-    independent errors would move it (heat shimmer moves whole patches of tracks
-    together). A first fit weighs it by the bend's inflation (:func:`_lens_sigmas`) and
-    the residuals with every centre at the image centre; a second, from the start
-    again, by the centres' own inflation (:func:`_centre_inflation`) and the residuals,
-    both of the first fit: centres assumed wrong leave residuals of their own, and
-    weighed by those the prior held the centres short (on exact projections the depth
-    scale stayed 0.03-0.13 % off after the first fit, <= 0.007 % after the second;
-    issue 35). Without shimmer the views settle the centres to a few px; in shimmer
-    the prior holds them near the image centre."""
+    """The fit again from ``x`` with the views' centres free as ``centres`` lets them
+    move, each held to the rig's by a Gaussian prior of ``prior_px`` (one standard
+    deviation per axis), the first ``fixed_terms`` radial terms held as they are in
+    ``x``: the outer parameters (P,) and the centres' move (k,) px
+    (:meth:`Centres.at`). The prior enters
+    as residual rows weighed as a maximum a posteriori fit would weigh them against
+    the tracks: their scatter (robust RMS) times the square root of ``inflation``, how
+    much more the fit moves than independent errors would move it (heat shimmer moves
+    whole patches of tracks together). A first fit weighs it by the bend's inflation
+    (:func:`_lens_sigmas`) and the residuals with every centre at the rig's; a second,
+    from the start again, by the centres' own inflation (:func:`_centre_inflation`)
+    and the residuals, both of the first fit: centres assumed wrong leave residuals of
+    their own, and weighed by those the prior held the centres short (on exact
+    projections the depth scale stayed 0.03-0.13 % off after the first fit, <= 0.007 %
+    after the second; issue 35). Without shimmer the views settle the centres to a few
+    px; in shimmer the prior holds them near the rig's."""
     weight = _prior_weight(problem, x, prior_px, inflation)
-    first, centres = _fit_centres_once(problem, x, opts, prior_px, weight, fixed_terms)
-    inflation = _centre_inflation(problem, first, blocks)
+    first, q = _fit_centres_once(problem, x, opts, centres, prior_px, weight, fixed_terms)
+    inflation = _centre_inflation(problem, first, centres, blocks)
     if np.isfinite(inflation):  # else too few tracks explained to say: keep the first
         weight = _prior_weight(problem, first, prior_px, inflation)
-        problem.centres = np.zeros((3, 2))  # from the start again: from the first's
+        problem.centres = centres.given.copy()  # from the start again: from the first's
         # optimum its steps stalled at once on a field frame (a rough Jacobian there)
-        return _fit_centres_once(problem, x, opts, prior_px, weight, fixed_terms)
-    return first, centres
+        return _fit_centres_once(problem, x, opts, centres, prior_px, weight, fixed_terms)
+    return first, q
 
 
 def _prior_weight(problem: Problem, x: np.ndarray, prior_px: float, inflation: float) -> float:
@@ -306,58 +326,86 @@ def _prior_weight(problem: Problem, x: np.ndarray, prior_px: float, inflation: f
     return scatter * np.sqrt(max(inflation, 1.0)) / prior_px
 
 
-def _centre_inflation(problem: Problem, x: np.ndarray, blocks: int) -> float:
-    """How much more the views' centres (those ``problem`` holds) move at the fit ``x``
-    than independent errors would move them: the largest ratio, over the six, of the
-    cluster-robust variance (``blocks`` x ``blocks`` blocks) to the independent one, at
-    least 1; inf where the fit explains too few tracks to say."""
-    J, r, inlier = plain_jacobian(problem, x, centres=True)
+def _centre_inflation(problem: Problem, x: np.ndarray, centres: Centres, blocks: int) -> float:
+    """How much more the views' centres (those ``problem`` holds, moving as ``centres``
+    lets them) move at the fit ``x`` than independent errors would move them: the
+    largest ratio, over their k moves, of the cluster-robust variance (``blocks`` x
+    ``blocks`` blocks) to the independent one, at least 1; inf where the fit explains
+    too few tracks to say."""
+    J, r, inlier = plain_jacobian(problem, x, centres.basis)
     if inlier.sum() < MIN_TRACKS:
         return float("inf")
+    k = centres.free
     try:
         iid = np.linalg.inv(J.T @ J) * float(r @ r) / max(r.size - J.shape[1] - inlier.sum(), 1)
         labels = np.repeat(spatial_blocks(problem.pl[inlier], blocks), 4)
         clustered = cluster_covariance(J, r, labels, int(inlier.sum()))
     except np.linalg.LinAlgError:
         return float("inf")
-    return max(1.0, float(np.max(np.diag(clustered)[-6:] / np.diag(iid)[-6:])))
+    return max(1.0, float(np.max(np.diag(clustered)[-k:] / np.diag(iid)[-k:])))
+
+
+def _shared_centre_offset_sigma(
+    problem: Problem, x: np.ndarray, centres: Centres, prior_px: float
+) -> float:
+    """The disparity offset's standard error (px) that one camera's centre carries: the
+    right camera's yaw (the offset, :mod:`rigkit.pipeline.ambiguity`) follows a centre
+    held wrong by the fit's own regression, times the prior's spread ``prior_px`` per
+    axis. The prior, not the fit's posterior: on ideal scenes at the paper's protocol
+    the tracks settled the centre 12 px off where their scatter said 2.5 px (the
+    tracker's errors are structured; docs/results-log.md, issue 35). 0 for three
+    cameras, whose centres' prior the ambiguity stage carries; inf where the fit
+    explains too few tracks to say."""
+    if centres.free != 2:
+        return 0.0
+    J, _, inlier = plain_jacobian(problem, x, centres.basis)
+    if inlier.sum() < MIN_TRACKS:
+        return float("inf")
+    outer = J.shape[1] - 2
+    Jp, Jc = J[:, :outer], J[:, outer:]
+    try:  # (P, 2): how far the fit moves per px of a centre held wrong
+        follows = np.linalg.solve(Jp.T @ Jp, Jp.T @ Jc)
+    except np.linalg.LinAlgError:
+        return float("inf")
+    yaw = follows[problem.n_terms + 2]
+    return problem.lens.focal_px * float(np.linalg.norm(yaw)) * prior_px
 
 
 def _fit_centres_once(
-    problem: Problem, x: np.ndarray, opts: dict, prior_px: float, weight: float,
-    fixed_terms: int,
+    problem: Problem, x: np.ndarray, opts: dict, centres: Centres, prior_px: float,
+    weight: float, fixed_terms: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One maximum a posteriori fit of :func:`_fit_centres`, from ``x`` and the centres
-    ``problem`` holds, the prior's rows weighed by ``weight`` (1/px)."""
-    held = x[:fixed_terms]
+    ``problem`` holds, the prior's rows weighed by ``weight`` (1/px): the outer
+    parameters and the centres' move (k,) px."""
+    held, k = x[:fixed_terms], centres.free
 
     def residuals(q: np.ndarray) -> np.ndarray:
-        problem.centres = q[-6:].reshape(3, 2)
-        r = problem.residuals(np.concatenate([held, q[:-6]])) / LOSS_SCALE_PX
+        problem.centres = centres.at(q[-k:])
+        r = problem.residuals(np.concatenate([held, q[:-k]])) / LOSS_SCALE_PX
         # The tracks' rows under the robust (Cauchy) loss, as a square root of it; the
         # prior's rows stay quadratic. Under the loss they had stopped pulling past
         # ~0.3 px / weight (~7 px on field frames), and shimmer ran a centre 73 px off.
         robust = np.sign(r) * np.sqrt(np.log1p(r * r)) * LOSS_SCALE_PX
-        return np.concatenate([robust, q[-6:] * weight])
+        return np.concatenate([robust, q[-k:] * weight])
 
     lower, upper = (b[fixed_terms:] for b in opts["bounds"])
     fit = least_squares(
-        residuals, np.concatenate([x[fixed_terms:], problem.centres.ravel()]), method="trf",
+        residuals, np.concatenate([x[fixed_terms:], np.zeros(k)]), method="trf",
         # A centre's step 1e-3 px or more (the residuals are nearly linear in it): at the
         # outer parameters' 1e-6 it was a millionth of a px, the depths' own tolerance.
-        diff_step=np.r_[np.full(len(x) - fixed_terms, opts["diff_step"]), np.full(6, 1e-3)],
-        x_scale=np.concatenate([opts["x_scale"][fixed_terms:], np.full(6, 10.0)]),
-        bounds=(np.concatenate([lower, np.full(6, -MAX_CENTRE_SIGMAS * prior_px)]),
-                np.concatenate([upper, np.full(6, MAX_CENTRE_SIGMAS * prior_px)])),
+        diff_step=np.r_[np.full(len(x) - fixed_terms, opts["diff_step"]), np.full(k, 1e-3)],
+        x_scale=np.concatenate([opts["x_scale"][fixed_terms:], np.full(k, 10.0)]),
+        bounds=(np.concatenate([lower, np.full(k, -MAX_CENTRE_SIGMAS * prior_px)]),
+                np.concatenate([upper, np.full(k, MAX_CENTRE_SIGMAS * prior_px)])),
     )
     residuals(fit.x)  # leave the centres and the depths at the solution
-    return np.concatenate([held, fit.x[:-6]]), fit.x[-6:].reshape(3, 2)
+    return np.concatenate([held, fit.x[:-k]]), fit.x[-k:]
 
 
 def refine_lens(
-    m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, baseline_lr_m: float,
-    baseline_lb_m: float, n_terms: int = 1, principal_point_sigma_px: float = 0.0,
-    blocks: int = 4,
+    m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, rig: RigGeometry,
+    settings: PipelineSettings,
 ) -> LensFit:
     """:func:`fit_distortion` from the given ``lens``, in every radial term it uses (at
     most two: the views constrain no more). Where the views rule the given lens out,
@@ -368,9 +416,8 @@ def refine_lens(
     cost 43.10 against 43.28) but left +4.3 % of depth bias: the tracks cannot tell
     the shapes apart, the depth can."""
     _, k2, _, _, k3 = lens.distortion
-    terms = max(n_terms, 2 if (k2 or k3) else 1)
-    args = (baseline_lr_m, baseline_lb_m)
-    first = _fit_terms(m_lr, m_lb, rect, lens, *args, terms, principal_point_sigma_px, blocks)
+    terms = max(settings.distortion_terms, 2 if (k2 or k3) else 1)
+    first = _fit_terms(m_lr, m_lb, rect, lens, rig, settings, terms)
     if lens.identity or not first.result.significant:
         return first.centred()
     # The views rule the given lens out: its centres are not worth fitting.
@@ -378,8 +425,7 @@ def refine_lens(
     # under the P1000 profile (77 px at the corner) one scene settled in a minimum with
     # 5x the tracks' RMS of the fit from nothing.
     bare_rect = pseudo_rectify(m_lr, lens.focal_px, lens.size)
-    bare = fit_distortion(m_lr, m_lb, bare_rect, Lens(lens.focal_px, lens.size), *args,
-                          n_terms, principal_point_sigma_px, blocks)
+    bare = fit_distortion(m_lr, m_lb, bare_rect, Lens(lens.focal_px, lens.size), rig, settings)
     return replace(bare, distortion=bare.fitted, start=lens.distortion, significant=True,
                    start_corner_px=first.result.start_corner_px, start_rejected=True)
 

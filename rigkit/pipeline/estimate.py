@@ -96,12 +96,15 @@ class DepthResult:
         """What the disparity offset's standard error is made of (px, one sigma each,
         adding in quadrature to ``ambiguity.offset_sigma_px``): ``air``, the matches'
         scatter between parts of the frame and large-scale shimmer; ``principal_points``,
-        the views' unknown principal points; ``lens``, the lens fitted from the views."""
-        a = self.ambiguity
-        lens = self.lens_fit.offset_sigma_px if self.lens_fit is not None else 0.0
-        known = a.principal_point_sigma_px**2 + lens**2
+        the views' unknown principal points (three cameras' prior, or one camera's
+        fitted centre); ``lens``, the lens fitted from the views."""
+        a, fit = self.ambiguity, self.lens_fit
+        lens = fit.offset_sigma_px if fit is not None else 0.0
+        centres = float(np.hypot(a.principal_point_sigma_px,
+                                 fit.centre_offset_sigma_px if fit is not None else 0.0))
+        known = centres**2 + lens**2
         return {"air": float(np.sqrt(max(a.offset_sigma_px**2 - known, 0.0))),
-                "principal_points": a.principal_point_sigma_px, "lens": lens}
+                "principal_points": centres, "lens": lens}
 
     def diagnostics(self) -> dict[str, object]:
         """JSON-ready summary: settings, warps, offset, match counts, timings."""
@@ -113,7 +116,8 @@ class DepthResult:
             "lens_fit": self.lens_fit.as_dict() if self.lens_fit else None,
             "disparity_offset_px": a.offset_px,
             "disparity_offset_sigma_px": a.offset_sigma_px,
-            "disparity_offset_sigma_principal_point_px": a.principal_point_sigma_px,
+            "disparity_offset_sigma_principal_point_px": self.offset_sources()[
+                "principal_points"],
             "disparity_offset_sigma_tilt_px": a.tilt_sigma_px,
             "offset_depth_error_fraction": self.offset_depth_fraction
             if np.isfinite(self.offset_depth_fraction)
@@ -164,7 +168,7 @@ OFFSET_ADVICE = {
             "(docs/field.md)"),
     "principal_points": ("the views' principal points, which may differ: one camera "
                          "moved between the three positions has one (rig profile: "
-                         "pipeline: principal_point_sigma: 0; docs/rig-profiles.md)"),
+                         "one_camera: true; docs/rig-profiles.md)"),
     "lens": ("the lens distortion fitted from the views: give the lens in the rig "
              "profile (camera.distortion, or lensfun's profile; docs/rig-profiles.md)"),
 }
@@ -247,9 +251,7 @@ def estimate_depth(
         disparity = matched.result()
     disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
     lap("stereo", 0.75)
-    amb = remove_ambiguity(
-        m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
-    )
+    amb = remove_ambiguity(m_lb, disparity, scale, rect, rig, s)
     lap("ambiguity", 0.8)
     agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, back_lens, rig, s)
     if agree.disagree.any():
@@ -257,8 +259,9 @@ def estimate_depth(
         if _touches(m_lb, agree.disagree, rect, scale):
             amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s)
     lap("agreement", 0.85)
-    if lens_fit is not None:  # the lens is not exact: its uncertainty moves the offset too
-        offset_sigma = float(np.hypot(amb.offset_sigma_px, lens_fit.offset_sigma_px))
+    if lens_fit is not None:  # the lens and one camera's centre, fitted, move the offset too
+        offset_sigma = float(np.sqrt(amb.offset_sigma_px**2 + lens_fit.offset_sigma_px**2
+                                     + lens_fit.centre_offset_sigma_px**2))
         amb = replace(amb, offset_sigma_px=offset_sigma)
     dense, holes = fill_holes(disparity, s.fill_max_gap_px, barrier=agree.disagree)
     # Holes filled across a footprint edge would extrapolate into unseen ground, and
@@ -306,15 +309,14 @@ def _lenses(
 ) -> tuple[tuple[Lens, Lens, Lens], LensFit | None]:
     """The lens the later stages use, as each view (left, right, back) sees it: the
     given one, refined from the views unless ``s.distortion_terms`` is 0, each view
-    bent about its own fitted centre (:mod:`rigkit.pipeline.distortion`)."""
+    bent about its own centre: fitted (:mod:`rigkit.pipeline.distortion`), else the
+    rig's principal point for it."""
     given = Lens(rig.focal_px, size, rig.distortion)
     if not s.distortion_terms:
-        return (given, given, given), None
+        return tuple(Lens(rig.focal_px, size, rig.distortion, centre)  # type: ignore[return-value]
+                     for centre in rig.principal_points_px), None
     start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
-    fit = refine_lens(
-        raw_lr, raw_lb, start, given, rig.baseline_lr_m, rig.baseline_lb_m, s.distortion_terms,
-        s.principal_point_sigma * size[0], s.jackknife_blocks,
-    )
+    fit = refine_lens(raw_lr, raw_lb, start, given, rig, s)
     return (fit.lens(rig.focal_px, size, 0), fit.lens(rig.focal_px, size, 1),
             fit.lens(rig.focal_px, size, 2)), fit
 
@@ -337,9 +339,7 @@ def _without_disagreeing(
     back-view matches remain for that, the first fit ``amb`` stands (its robust loss
     has already discounted the matches that fit no single pose)."""
     try:
-        return remove_ambiguity(
-            m_lb, disparity, scale, rect, rig.baseline_lr_m, rig.baseline_lb_m, s
-        )
+        return remove_ambiguity(m_lb, disparity, scale, rect, rig, s)
     except PipelineError:
         return amb
 

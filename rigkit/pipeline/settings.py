@@ -31,11 +31,13 @@ class PipelineSettings:
     offset (a block jackknife) and of the fitted lens (cluster-robust), which heat
     shimmer's patch-wise errors would otherwise make too small;
     ``principal_point_sigma`` how far (one standard deviation, as a fraction of the
-    image width) each view's principal point may sit from the image centre: the prior
-    under which the lens stage fits each view's principal point from the three views
-    and takes it out (:mod:`rigkit.pipeline.distortion`); its spread is also added to
+    image width) each view's principal point may sit from the rig's
+    (:attr:`~rigkit.pipeline.rig.RigGeometry.principal_points_px`: the profile's, else
+    the image centre): the prior under which the lens stage fits each view's principal
+    point (one camera's: one, shared) from the three views and takes it out
+    (:mod:`rigkit.pipeline.distortion`); for three cameras its spread is also added to
     the standard errors of the offset and of the fitted lens (0: every principal point
-    at the image centre, nothing fitted and nothing added).
+    where the rig puts it, nothing fitted and nothing added).
     Views that disagree: ``min_agreement`` the zero-mean normalised cross-correlation
     over ``agreement_window_px`` (stereo px) below which the right or the back view
     contradicts a depth (something moved between the captures): that pixel and

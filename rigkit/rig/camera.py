@@ -59,23 +59,28 @@ class CameraSpec:
 class Intrinsics:
     """A camera's pinhole model in the pixel convention of the depth maps, the pipeline
     and :mod:`rigkit.synth` (pixel centres at integers, the top-left one at (0, 0)):
-    ``focal_px``; the principal point (``cx_px``, ``cy_px``), px."""
+    ``focal_px``; the principal point (``cx_px``, ``cy_px``), px; ``centre_offset_px``:
+    that point's (x right, y down) offset from the image centre ((W - 1) / 2,
+    (H - 1) / 2), px, as the pipeline takes it."""
 
     focal_px: float
     cx_px: float
     cy_px: float
+    centre_offset_px: tuple[float, float]
 
 
 def intrinsics(spec: CameraSpec, focal_px: float, image_size: tuple[int, int]) -> Intrinsics:
     """``spec``'s pinhole model for frames of ``image_size`` (W, H) px at ``focal_px``:
     the one conversion of a profile's ``principal_point_px`` (measured from the top-left
     pixel's corner, so less 0.5 px here), or the image centre where it gives none. The
-    laser comparisons, ``depth.json`` and export all take it from here."""
+    pipeline, the laser comparisons and export all take it from here."""
     width, height = image_size
+    centre = ((width - 1) / 2, (height - 1) / 2)
     if spec.principal_point_px is None:
-        return Intrinsics(focal_px, (width - 1) / 2, (height - 1) / 2)
-    return Intrinsics(focal_px, spec.principal_point_px[0] - 0.5,
-                      spec.principal_point_px[1] - 0.5)
+        cx, cy = centre
+    else:
+        cx, cy = spec.principal_point_px[0] - 0.5, spec.principal_point_px[1] - 0.5
+    return Intrinsics(focal_px, cx, cy, (cx - centre[0], cy - centre[1]))
 
 
 def read_camera(value: Any, key: KeyPath) -> CameraSpec:

@@ -120,6 +120,9 @@ class RigProfile:
     nominal_range_m: float | None
     source: Path = field(compare=False)
     pipeline: Mapping[str, float] = field(default_factory=dict, hash=False)
+    one_camera: bool = False
+    """One camera moved between the three positions (``one_camera: true``): the views
+    share its principal point. False: three cameras, each with its own."""
 
     @property
     def distortion(self) -> Distortion:
@@ -135,15 +138,21 @@ class RigProfile:
 
     def intrinsics(self, image_size: tuple[int, int] | None = None) -> Intrinsics:
         """The left camera's pinhole model for frames of ``image_size`` (W, H) px (None:
-        the profile's), :func:`rigkit.rig.camera.intrinsics`: what the laser comparisons,
-        ``depth.json`` and export use."""
+        the profile's), :func:`rigkit.rig.camera.intrinsics`: what the pipeline, the laser
+        comparisons and export use."""
         size = self.image_size if image_size is None else image_size
         return intrinsics(self.cameras["left"], self.focal_px, size)
 
     def geometry(self) -> RigGeometry:
-        """What the depth pipeline needs of the rig: f, C_lr, C_lb and the lens."""
+        """What the depth pipeline needs of the rig: f, C_lr, C_lb, the lens, each
+        camera's principal point (:func:`rigkit.rig.camera.intrinsics`, at the profile's
+        image size) and whether one camera took the three views."""
+        size, f = self.image_size, self.focal_px
+        left, right, back = (intrinsics(self.cameras[role], f, size).centre_offset_px
+                             for role in CAMERA_ROLES)
         return RigGeometry(
-            self.focal_px, self.baseline_lr.value_m, self.baseline_lb.value_m, self.distortion
+            f, self.baseline_lr.value_m, self.baseline_lb.value_m, self.distortion,
+            principal_points_px=(left, right, back), one_camera=self.one_camera,
         )
 
     def pipeline_settings(self) -> PipelineSettings:
@@ -214,15 +223,21 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
         required=("version", "name", "baselines"),
         optional=(
             "camera", "cameras", "back_offset", "rangefinder", "notes", "nominal_range_m",
-            "pipeline",
+            "pipeline", "one_camera",
         ),
     )
     _check_version(keys["version"], top.child("version"))
     baselines = top.child("baselines")
     pair = baselines.mapping(keys["baselines"], required=("C_lr", "C_lb"))
+    cameras = _cameras(keys, top)
+    one_camera = top.optional(keys, "one_camera", _one_camera) or False
+    if one_camera and any(cameras[role] != cameras["left"] for role in CAMERA_ROLES):
+        raise top.child("one_camera").error(
+            "one camera took the three views, but `cameras:` gives them different specs "
+            "(give one `camera:`)", True)
     return RigProfile(
         name=top.child("name").line(keys["name"]),
-        cameras=_cameras(keys, top),
+        cameras=cameras,
         baseline_lr=_baseline(pair["C_lr"], baselines.child("C_lr")),
         baseline_lb=_baseline(pair["C_lb"], baselines.child("C_lb")),
         back_offset_m=top.optional(keys, "back_offset", _back_offset),
@@ -231,7 +246,15 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
         nominal_range_m=top.optional(keys, "nominal_range_m", _nominal_range),
         source=path,
         pipeline=top.optional(keys, "pipeline", _pipeline) or {},
+        one_camera=one_camera,
     )
+
+
+def _one_camera(value: Any, key: KeyPath) -> bool:
+    if not isinstance(value, bool):
+        raise key.error("must be true (one camera moved between the positions) or false "
+                        "(three cameras)", value)
+    return value
 
 
 def read_rig_data(path: Path) -> Any:
@@ -395,6 +418,8 @@ def rig_to_dict(profile: RigProfile) -> dict[str, Any]:
         data["notes"] = profile.notes
     if profile.pipeline:
         data["pipeline"] = dict(profile.pipeline)
+    if profile.one_camera:
+        data["one_camera"] = True
     return data
 
 

@@ -23,8 +23,7 @@ def back_matches(images):
 
 def _ambiguity(m, result, rig, settings=DEFAULT):
     return remove_ambiguity(
-        m, result.disparity, result.disparity_scale, result.rectification,
-        rig.baseline_lr_m, rig.baseline_lb_m, settings,
+        m, result.disparity, result.disparity_scale, result.rectification, rig, settings,
     )
 
 

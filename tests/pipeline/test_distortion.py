@@ -24,6 +24,8 @@ from rigkit.pipeline.distortion import (
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import pseudo_rectify
+from rigkit.pipeline.rig import RigGeometry
+from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth.shimmer import shimmer_field
 
 W, H = 1600, 1200
@@ -72,10 +74,19 @@ def _tracks(k1: float, noise_px: float, rng: np.random.Generator, n: int = 1200,
     )
 
 
+RIG = RigGeometry(F, 2.0, 2.0)
+
+
+def _settings(pp_sigma_px: float) -> PipelineSettings:
+    """The pipeline's defaults, each view's principal point held by a prior of
+    ``pp_sigma_px`` (0: at the image centre)."""
+    return PipelineSettings(principal_point_sigma=pp_sigma_px / W)
+
+
 def _fit(m_lr: Matches, m_lb: Matches, start=(0.0,) * 5, pp_sigma_px: float = 0.0):
     lens = Lens(F, (W, H), start)
     rect = pseudo_rectify(m_lr, F, (W, H))
-    return fit_distortion(m_lr, m_lb, rect, lens, 2.0, 2.0, 1, pp_sigma_px)
+    return fit_distortion(m_lr, m_lb, rect, lens, RIG, _settings(pp_sigma_px))
 
 
 def _k1_for_corner(fraction: float) -> float:
@@ -197,7 +208,7 @@ def test_the_offsets_share_is_how_far_a_wrong_lens_moves_the_yaw() -> None:
     fit = _fit(m_lr, m_lb)
     lens = Lens(F, (W, H), (0.0,) * 5)
     z0, back_rotvec = back_view_start(m_lb, F, lens.centre, 2.0)
-    problem = Problem(lens, three_view_tracks(m_lr, m_lb), 2.0, 2.0, 1, 1 / z0)
+    problem = Problem(lens, three_view_tracks(m_lr, m_lb), 2.0, 2.0, 1, 1 / z0, np.zeros((3, 2)))
     start = initial(problem, pseudo_rectify(m_lr, F, (W, H)), back_rotvec)
     p = least_squares(problem.residuals, start, x_scale=1e-3, diff_step=1e-6).x
 
@@ -224,7 +235,7 @@ def _field_at(pts: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 def _refine(m_lr: Matches, m_lb: Matches, start, pp_sigma_px: float = 0.0):
     lens = Lens(F, (W, H), start)
     rect = pseudo_rectify(m_lr, F, (W, H))
-    return refine_lens(m_lr, m_lb, rect, lens, 2.0, 2.0, 1, pp_sigma_px)
+    return refine_lens(m_lr, m_lb, rect, lens, RIG, _settings(pp_sigma_px))
 
 
 def test_a_profile_of_another_shape_is_rejected_and_the_lens_fitted_from_the_views() -> None:
@@ -293,7 +304,7 @@ def test_a_rejected_profile_is_fitted_again_as_if_none_were_given() -> None:
     bent = Lens(F, (W, H), profile)
     under_profile = replace(m_lr, left=bent.to_ideal(m_lr.left), other=bent.to_ideal(m_lr.other))
     rect = pseudo_rectify(under_profile, F, (W, H))
-    rejected = refine_lens(m_lr, m_lb, rect, bent, 2.0, 2.0, 1, 10.0)
+    rejected = refine_lens(m_lr, m_lb, rect, bent, RIG, _settings(10.0))
     plain = _refine(m_lr, m_lb, (0.0,) * 5, pp_sigma_px=10.0)
     assert rejected.start_rejected and not plain.start_rejected
     assert rejected.corner_px == pytest.approx(plain.corner_px, abs=1e-6)

@@ -22,6 +22,7 @@ import pytest
 from rigkit.geometry import Camera, euler_to_matrix, focal_from_fov, intrinsics
 from rigkit.pipeline.ambiguity import remove_ambiguity
 from rigkit.pipeline.depth import triangulate_z
+from rigkit.pipeline.distortion import LensFit
 from rigkit.pipeline.estimate import RigGeometry, _ideal, _lenses
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
@@ -91,22 +92,27 @@ def _disparity(cams: dict[str, Camera], rect, lens: Lens, right_lens: Lens) -> n
     return ((canvas[:, 0] - x_right) * SCALE).reshape(h, w).astype(np.float32)
 
 
-def _depth_scale_error(pp: dict[str, tuple[float, float]]) -> tuple[float, tuple]:
+THREE = RigGeometry(F, 2.0, 2.0)  # three cameras, their principal points not given
+DEFAULT = PipelineSettings()
+
+
+def _depth_scale_error(
+    pp: dict[str, tuple[float, float]], rig: RigGeometry = THREE, s: PipelineSettings = DEFAULT,
+) -> tuple[float, LensFit]:
     """The median relative depth error (fraction) at the matched points when the pipeline
-    sees these cameras, and the principal points (px from the centre) it fitted."""
+    sees these cameras as ``rig`` under ``s``, and its lens stage's fit."""
     cams = _cameras(pp)
     m_lr, m_lb, z_true = _matches(cams)
-    rig, s = RigGeometry(F, 2.0, 2.0), PipelineSettings()
     (lens, right_lens, back_lens), fit = _lenses(m_lr, m_lb, rig, (W, H), s)
     i_lr, i_lb = _ideal(m_lr, lens, right_lens), _ideal(m_lb, lens, back_lens)
     rect = pseudo_rectify(i_lr, F, (W, H), s, lens)
     disparity = _disparity(cams, rect, lens, right_lens)
-    amb = remove_ambiguity(i_lb, disparity, SCALE, rect, 2.0, 2.0, s)
+    amb = remove_ambiguity(i_lb, disparity, SCALE, rect, rig, s)
     x_left = apply_homography(rect.H_left, i_lr.left)[:, 0]
     d = x_left - apply_homography(rect.H_right, i_lr.other)[:, 0]
     z = triangulate_z(rect, x_left, d, amb.beta, 2.0)
     assert fit is not None
-    return float(np.median(z / z_true - 1)), fit.centres_px
+    return float(np.median(z / z_true - 1)), fit
 
 
 @pytest.fixture(scope="module")
@@ -120,10 +126,10 @@ def test_centred_principal_points_give_the_exact_depth_scale(centred: float) -> 
 
 
 def test_principal_points_apart_move_no_depth(centred: float) -> None:
-    error, centres = _depth_scale_error(APART)
+    error, fit = _depth_scale_error(APART)
     # Before the views' principal points were fitted without a bend: +0.49 %.
     assert abs(error - centred) < 2e-4  # 0.02 % of depth
-    for view, centre in zip(("left", "right", "back"), centres, strict=True):
+    for view, centre in zip(("left", "right", "back"), fit.centres_px, strict=True):
         assert np.hypot(*np.subtract(centre, APART[view])) < 1.0, view
 
 
@@ -133,3 +139,33 @@ def test_one_principal_point_shared_off_the_centre_moves_no_depth(centred: float
     shared = {name: (10.0, -7.0) for name in POSES}
     error, _ = _depth_scale_error(shared)
     assert abs(error - centred) < 2e-4  # before: +0.16 %
+
+
+SHARED = (10.0, -7.0)  # one camera's principal point, px from the image centre
+
+
+def test_one_camera_fits_one_principal_point_for_the_three_views(centred: float) -> None:
+    # Declared (rig profile: one_camera: true), the views' one centre is fitted once.
+    one = RigGeometry(F, 2.0, 2.0, one_camera=True)
+    error, fit = _depth_scale_error(dict.fromkeys(POSES, SHARED), one)
+    assert abs(error - centred) < 2e-4
+    assert len(set(fit.centres_px)) == 1  # one centre
+    assert np.hypot(*np.subtract(fit.centres_px[0], SHARED)) < 0.5
+    # The offset carries the prior's spread of it (at 0.5 % of the width, 5.8 px here).
+    assert 0.01 < fit.centre_offset_sigma_px < 0.5
+
+
+def test_a_principal_point_the_profile_gives_is_taken_where_nothing_is_fitted(
+    centred: float,
+) -> None:
+    # principal_point_sigma 0: the views' centres are not fitted but taken from the rig
+    # (RigProfile.geometry: the profile's principal point, rig/camera.intrinsics).
+    given = RigGeometry(F, 2.0, 2.0, principal_points_px=(SHARED,) * 3, one_camera=True)
+    held = PipelineSettings(principal_point_sigma=0.0)
+    error, fit = _depth_scale_error(dict.fromkeys(POSES, SHARED), given, held)
+    assert fit.centres_px == (SHARED,) * 3
+    assert abs(error - centred) < 2e-4
+    # Taken at the image centre instead, the same camera is off (the mechanism above).
+    wrong, _ = _depth_scale_error(dict.fromkeys(POSES, SHARED),
+                                  RigGeometry(F, 2.0, 2.0, one_camera=True), held)
+    assert abs(wrong - centred) > 5e-4

@@ -65,8 +65,12 @@ def test_profile_principal_point_is_moved_to_pixel_centres(truth: SceneTruth) ->
     camera = profile.intrinsics((left.width, left.height))
     assert (camera.focal_px, camera.cx_px, camera.cy_px) == pytest.approx((left.f, cx, cy),
                                                                           abs=1e-9)
+    # The pipeline gets the same point, as its offset from the image centre.
+    centre = ((left.width - 1) / 2, (left.height - 1) / 2)
+    assert profile.geometry().principal_points_px[0] == pytest.approx(
+        (cx - centre[0], cy - centre[1]), abs=1e-9)
     centred = _profile(truth, None).intrinsics((left.width, left.height))
-    assert (centred.cx_px, centred.cy_px) == ((left.width - 1) / 2, (left.height - 1) / 2)
+    assert (centred.cx_px, centred.cy_px) == centre and centred.centre_offset_px == (0, 0)
     assert aperture_offset(profile) == OFFSET
 
 

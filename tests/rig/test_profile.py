@@ -20,6 +20,7 @@ from rigkit.rig import (
     fov_deg,
     load_rig,
 )
+from rigkit.rig.profile import rig_to_dict
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = sorted((ROOT / "rigs").glob("*.yaml"))
@@ -147,6 +148,22 @@ def test_p1000_profile() -> None:
     assert profile.back_offset_m == (0.0, 0.0)
     assert profile.rangefinder is not None and profile.rangefinder.protocol == "manual"
     assert "5.16" in profile.notes
+    assert profile.one_camera and profile.geometry().one_camera  # one camera, moved
+
+
+def test_one_camera_is_a_fact_of_the_rig_checked_against_its_specs(tmp_path: Path) -> None:
+    three = _with_cameras(tmp_path, _camera(50_000), _camera(50_000), _camera(50_000))
+    assert not load_rig(three).one_camera  # three cameras unless the profile says one
+    text = three.read_text()
+    path = tmp_path / "one.yaml"
+    path.write_text(text + "one_camera: true\n")
+    assert load_rig(path).one_camera and "one_camera" in rig_to_dict(load_rig(path))
+    path.write_text(text.replace(_camera(50_000), _camera(50_040), 1) + "one_camera: true\n")
+    with pytest.raises(InputError, match="one_camera: one camera took the three views"):
+        load_rig(path)
+    path.write_text(text + "one_camera: yes please\n")
+    with pytest.raises(InputError, match="one_camera: must be true"):
+        load_rig(path)
 
 
 def test_synthetic_profile_matches_the_paper_protocol() -> None:

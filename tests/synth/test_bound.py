@@ -139,7 +139,7 @@ def test_predicted_spread_is_the_fits_spread_over_shimmer_draws(shimmered) -> No
         in_back = _at(shimmer_field(back.shape, RMS, corr, rng), m.other)
         amb = remove_ambiguity(replace(m, other=m.other + in_back - in_left),
                                result.disparity, result.disparity_scale,
-                               result.rectification, rig.baseline_lr_m, rig.baseline_lb_m)
+                               result.rectification, rig)
         offsets.append(amb.offset_px)
     assert np.std(offsets, ddof=1) == pytest.approx(bound.estimator_px, rel=0.2)
     # Weighting by the covariance can only help on the same points (Gauss-Markov).
