@@ -71,7 +71,10 @@ def judged_pixels(truth: np.ndarray, scene: dict) -> np.ndarray:
 def estimate(scene_dir: Path, scene: dict) -> np.ndarray:
     """The left view's depth as ``rigkit depth`` gives it: (H, W) float32, metres."""
     images = [load_grey(scene_dir / f"{name}.png") for name in ("left", "right", "back")]
-    rig = RigGeometry(scene["f_px"], scene["C_lr"], scene["C_lb"])
+    # One camera model for the three views (the same K): the rig says so, as a
+    # profile's one_camera: true does.
+    one_camera = all(k == scene["cameras"]["left"] for k in scene["cameras"].values())
+    rig = RigGeometry(scene["f_px"], scene["C_lr"], scene["C_lb"], one_camera=one_camera)
     t0 = time.perf_counter()
     result = estimate_depth(*images, rig)
     print(f"estimated in {time.perf_counter() - t0:.1f} s; "
