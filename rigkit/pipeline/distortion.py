@@ -89,10 +89,9 @@ class LensFit:
     out the given lens and this is the fit from no distortion (:func:`refine_lens`);
     ``centres_px``: ((x, y) left, right, back) px from the image centre to each view's
     principal point, its centre of distortion (fitted under the prior, else the rig's);
-    ``centre_offset_sigma_px``: the disparity offset's standard error that a fitted
-    shared centre's uncertainty carries (px; one camera moved between the positions,
-    whose centre the views settle; for three cameras the ambiguity stage carries the
-    centres' prior instead, and this is 0).
+    ``centre_offset_sigma_px``: the disparity offset's standard error that one
+    camera's shared centre carries (px; :func:`_shared_centre_offset_sigma`; for three
+    cameras the ambiguity stage carries the centres' prior instead, and this is 0).
     """
 
     distortion: Distortion
