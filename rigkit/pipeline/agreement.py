@@ -122,8 +122,8 @@ def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
     den = np.sqrt(saa * sbb, out=saa)
     flat = den <= 1e-6
     np.divide(cov, np.maximum(den, 1e-6, out=den), out=cov)
-    cov[flat] = 0.0
-    cov[few] = np.nan
+    np.copyto(cov, 0.0, where=flat)  # copyto: 4x a boolean index
+    np.copyto(cov, np.nan, where=few)
     return cov
 
 
@@ -133,7 +133,7 @@ def right_at_disparity(right: np.ndarray, disparity: np.ndarray, dy: float = 0.0
     disparity (px, ``x_left - x_right``) puts its match, ``dy`` px lower: (h, w)
     float32, NaN where the disparity is NaN or the match is off the image."""
     h, w = disparity.shape
-    xs = (np.arange(w, dtype=np.float32)[None, :] - disparity).astype(np.float32)
+    xs = (np.arange(w, dtype=np.float32)[None, :] - disparity).astype(np.float32, copy=False)
     ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None] + np.float32(dy), (h, w))
     return cv2.remap(right, xs, np.ascontiguousarray(ys), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
@@ -261,9 +261,9 @@ def _best_zncc(
     best: np.ndarray | None = None
     for dx, dy in steps:
         seen = sample(dx, dy)
-        seen[~known] = np.nan
+        np.copyto(seen, np.nan, where=~known)
         score = zncc(left, seen, window)
-        score[np.isnan(seen)] = np.nan
+        np.copyto(score, np.nan, where=np.isnan(seen))
         best = score if best is None else np.fmax(best, score, out=best)
     assert best is not None
     return best
