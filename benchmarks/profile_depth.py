@@ -9,7 +9,9 @@ cumulative and by own time.
 A position given as comma-separated files is a burst (as ``rigkit depth`` takes it).
 ``--repeat`` runs the command that many times in this process (after the first,
 imports cost nothing) and prints each run's row: the machine's noise shows in their
-spread; ``--memory`` adds each stage's peak resident memory. Run it against another
+spread; ``--memory`` adds each stage's peak resident memory; ``--cpu`` gives each
+stage's CPU seconds (the process's, all threads together) instead of its wall seconds,
+which a machine shared with other jobs moves far less. Run it against another
 checkout with ``PYTHONPATH=/that/checkout`` to compare (docs/results.md).
 """
 
@@ -25,25 +27,48 @@ import resource
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 STAGES = ("matching", "lens", "rectification", "stereo", "ambiguity", "agreement", "depth")
 
 
-def _timed(module: object, name: str, times: dict[str, float], key: str) -> None:
-    """Wrap ``module.name`` so that the seconds its calls take add up in ``times[key]``
-    (and ``times[key + '@']`` holds when the last call started)."""
+def _timed(module: object, name: str, times: dict[str, float], key: str,
+           clock: Callable[[], float]) -> None:
+    """Wrap ``module.name`` so that the seconds (of ``clock``) its calls take add up in
+    ``times[key]`` (and ``times[key + '@']`` holds when the last call started)."""
     inner = getattr(module, name)
 
     def wrapper(*args: object, **kwargs: object) -> object:
-        t0 = time.perf_counter()
+        t0 = clock()
         times[key + "@"] = t0
         try:
             return inner(*args, **kwargs)
         finally:
-            times[key] = times.get(key, 0.0) + time.perf_counter() - t0
+            times[key] = times.get(key, 0.0) + clock() - t0
 
     setattr(module, name, wrapper)
+
+
+def _staged(module: object, stages: dict[str, float], clock: Callable[[], float]) -> None:
+    """Wrap ``module.estimate_depth`` so that each stage's seconds of ``clock`` land in
+    ``stages`` (its progress calls mark where the stages end)."""
+    inner = module.estimate_depth  # type: ignore[attr-defined]
+
+    def wrapper(*args: object, progress: Callable[[str, float], None] | None = None,
+                **kwargs: object) -> object:
+        last = clock()
+
+        def lap(stage: str, fraction: float) -> None:
+            nonlocal last
+            now = clock()
+            stages[stage], last = now - last, now
+            if progress is not None:
+                progress(stage, fraction)
+
+        return inner(*args, progress=lap, **kwargs)
+
+    module.estimate_depth = wrapper  # type: ignore[attr-defined]
 
 
 class RssSampler:
@@ -86,18 +111,24 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--memory", action="store_true",
                     help="sample resident memory and print each stage's peak (MB)")
+    ap.add_argument("--cpu", action="store_true",
+                    help="CPU seconds of the process per stage instead of wall seconds")
     args = ap.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
+    clock = time.process_time if args.cpu else time.perf_counter
 
-    t0 = time.perf_counter()
+    t0 = clock()
     import rigkit.batch.depthrun as depthrun
     import rigkit.core.files as files
     from rigkit.cli import main as rigkit_main
 
-    imports = time.perf_counter() - t0
+    imports = clock() - t0
     times: dict[str, float] = {}
-    _timed(depthrun, "load_capture", times, "load")
-    _timed(files, "write_together", times, "write")
+    cpu_stages: dict[str, float] = {}
+    _timed(depthrun, "load_capture", times, "load", clock)
+    _timed(files, "write_together", times, "write", clock)
+    if args.cpu:
+        _staged(depthrun, cpu_stages, clock)
     argv = ["depth", args.left, args.right, args.back, "--focal-px", args.focal_px,
             "--baseline-lr", args.baseline_lr, "--baseline-lb", args.baseline_lb,
             "--out", str(args.out), "--quiet"]
@@ -108,7 +139,7 @@ def main() -> int:
     profiler = cProfile.Profile() if args.profile else None
     for run in range(args.repeat):
         times.clear()
-        t1 = time.perf_counter()
+        t1 = clock()
         sampler = RssSampler() if args.memory else None
         if profiler is not None:
             profiler.enable()
@@ -117,15 +148,16 @@ def main() -> int:
             profiler.disable()
         if sampler is not None:
             sampler.stop()
-        total = time.perf_counter() - t1 + (imports if run == 0 else 0.0)
-        stages = json.loads(args.out.with_suffix(".json").read_text())["timings_s"]
+        total = clock() - t1 + (imports if run == 0 else 0.0)
+        stages = cpu_stages if args.cpu else json.loads(
+            args.out.with_suffix(".json").read_text())["timings_s"]
         known = sum(stages.get(s, 0.0) for s in STAGES) + times["load"] + times["write"]
         known += imports if run == 0 else 0.0
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         print(f"{run + 1:>3} {imports if run == 0 else 0.0:6.2f} {times['load']:5.2f} "
               + " ".join(f"{stages.get(s, 0.0):6.2f}" for s in STAGES)
               + f" {times['write']:5.2f} {total - known:5.2f} {total:6.2f} {peak:7.0f}")
-        if sampler is not None:  # the pipeline's stages follow one another after loading
+        if sampler is not None and not args.cpu:  # the stages follow one another
             edges = [("load", times["load@"], times["load@"] + times["load"])]
             at = edges[0][2]
             for stage in STAGES:

@@ -37,6 +37,7 @@ import threadpoolctl
 _lock = threading.Lock()
 _holders = 0
 _original: Any = None
+_libraries: Any = None
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -47,10 +48,14 @@ def serial_blas() -> Iterator[None]:
     """Run the body with every BLAS library at one thread. Bodies may nest and overlap
     in several threads: each sets one thread as it starts (per-thread BLAS limits, as
     OpenMP builds have, need it), and the last to end restores the limits found by the
-    first."""
-    global _holders, _original
+    first. The libraries are those loaded when the first began: finding them takes ~1 ms
+    (every library loaded is looked at), and a pipeline run starts some 40 bodies, its
+    stages and their threads' tasks, with its libraries loaded by its imports."""
+    global _holders, _original, _libraries
     with _lock:
-        limiter = _as_controller(lambda: threadpoolctl.threadpool_limits(1, user_api="blas"))
+        if _holders == 0:  # the loaded libraries, found once for the bodies that overlap
+            _libraries = threadpoolctl.ThreadpoolController()
+        limiter = _as_controller(lambda: _libraries.limit(limits=1, user_api="blas"))
         if _holders == 0:
             _original = limiter
         _holders += 1

@@ -19,7 +19,11 @@ from rigkit.core.threads import ViewPool
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, scaling
 
-CHUNK_ROWS = 512
+CHUNK_ROWS = 128
+"""Rows of the left image per chunk of :func:`left_grid` (a multiple of
+``rigkit.pipeline.lens.GRID_STEP``, so that the chunks' lens maps are the whole image's):
+its float64 arrays (4.7 MB each at 4608 columns) stay in the cache; at 512 rows
+:func:`to_left` took 0.87 s of CPU at 16 MP, at 128 rows 0.42 s."""
 
 
 def rectified_rays(rect: Rectification, u: np.ndarray, disparity: np.ndarray) -> tuple:
@@ -36,14 +40,31 @@ def triangulate_z(
     rect: Rectification, u: np.ndarray, disparity: np.ndarray, beta: float, baseline_m: float
 ) -> np.ndarray:
     """Depth (m, z in the left and rectified frames, which share the z axis) of rectified
-    left column ``u`` with rectified ``disparity``, for a right-camera yaw correction
-    ``beta`` (rad). Non-positive or infinite results (behind the rig) become NaN."""
-    a, b = rectified_rays(rect, u, disparity)
+    left column ``u`` with rectified ``disparity`` (broadcast together), for a
+    right-camera yaw correction ``beta`` (rad). Non-positive or infinite results (behind
+    the rig) become NaN. Float64, of the broadcast shape.
+
+    The numbers of ``a - (b + t) / (1 - b t)`` with :func:`rectified_rays`' ``a`` and
+    ``b``, each step in place in one array: on a chunk of a 16 MP image every fresh
+    array of its size is memory traffic, which costs more than the arithmetic."""
+    f = rect.K[0, 0]
+    cx = rect.K[0, 2] + rect.canvas[0, 2]
     t = np.tan(beta)
-    denom = a - (b + t) / (1.0 - b * t)  # the right ray turned by beta: tan(atan(b) + beta)
+    b = np.subtract(u, disparity, dtype=np.float64)  # rectified_rays' b, step by step
+    b -= rect.shift
+    b -= cx
+    b /= f
+    z = np.multiply(b, t)
+    np.subtract(1.0, z, out=z)  # 1 - b t
+    b += t
+    np.divide(b, z, out=z)  # the right ray turned by beta: tan(atan(b) + beta)
+    a = np.subtract(u, cx, dtype=np.float64)
+    a /= f
+    np.subtract(a, z, out=z)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = baseline_m / denom
-    return np.where(z > 0, z, np.nan)
+        np.divide(baseline_m, z, out=z)
+        np.copyto(z, np.nan, where=~(z > 0))
+    return z
 
 
 def left_grid(
@@ -66,11 +87,16 @@ def _grid_rows(
     S = scaling(scale)  # diagonal scale and shift: resized = S @ full resolution
     lens = lens or Lens(float(rect.K[0, 0]), (W, H))
     u, v = lens.ideal_rows(r0, min(r0 + CHUNK_ROWS, H))
-    inv = 1.0 / (h[2, 0] * u + (h[2, 1] * v + h[2, 2]))  # homogeneous weight
-    uf = (h[0, 0] * u + (h[0, 1] * v + h[0, 2])) * inv
-    vf = (h[1, 0] * u + (h[1, 1] * v + h[1, 2])) * inv
-    xs = (S[0, 0] * uf + S[0, 2]).astype(np.float32)
-    ys = (S[1, 1] * vf + S[1, 2]).astype(np.float32)
+    # In place where it can be: each fresh array of the chunk's size costs memory traffic.
+    inv = np.add(h[2, 0] * u, h[2, 1] * v + h[2, 2])
+    np.divide(1.0, inv, out=inv)  # homogeneous weight
+    uf = np.add(h[0, 0] * u, h[0, 1] * v + h[0, 2])
+    uf *= inv
+    vf = np.add(h[1, 0] * u, h[1, 1] * v + h[1, 2])
+    vf *= inv
+    xs, ys = np.empty(uf.shape, np.float32), np.empty(uf.shape, np.float32)
+    np.add(np.multiply(uf, S[0, 0], out=inv), S[0, 2], out=xs)  # rounded once to float32
+    np.add(np.multiply(vf, S[1, 1], out=vf), S[1, 2], out=ys)
     return slice(r0, r0 + uf.shape[0]), xs, ys, uf
 
 

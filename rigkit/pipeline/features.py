@@ -304,7 +304,7 @@ def local_contrast(
         cv2.divide(z, sd, dst=z, scale=32.0)
         cv2.add(z, 128.0, dst=out[r0:r1], dtype=cv2.CV_8U)  # type: ignore[call-overload]  # rounds, saturates
         if cut:
-            out[r0:r1][outside[r0:r1]] = 128
+            np.copyto(out[r0:r1], 128, where=outside[r0:r1])  # 4x a boolean index
     return out
 
 

@@ -120,7 +120,8 @@ def _merge_passes(disp: np.ndarray, disp_r: np.ndarray, tol: float) -> np.ndarra
     with np.errstate(invalid="ignore"):
         other = _at_match(disp - np.float32(HALF_PX), disp_r, np.nan) + np.float32(HALF_PX)
         ok = np.abs(other - disp) <= tol
-    return np.where(ok, np.float32(0.5) * (disp + other), np.float32(np.nan)).astype(np.float32)
+    return np.where(ok, np.float32(0.5) * (disp + other), np.float32(np.nan)).astype(
+        np.float32, copy=False)
 
 
 def restrict_to_footprints(
@@ -129,7 +130,7 @@ def restrict_to_footprints(
     """NaN where the left pixel, or its match ``x - d`` in the right image, lies outside
     that image's footprint on the rectified canvas (all (H, W); masks bool)."""
     ok = _at_match(disp, right_valid, 0) & left_valid
-    return np.where(ok, disp, np.nan).astype(np.float32)
+    return np.where(ok, disp, np.nan).astype(np.float32, copy=False)
 
 
 def surface_mask(
