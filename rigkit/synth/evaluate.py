@@ -15,7 +15,12 @@ shadow) are scored as above; of the moved pixels (every left pixel with ground t
 that a mover covers in any view, judged or not: the right view may not see that
 surface at all) it counts those given any depth and those given a depth more than
 ``MOVED_WRONG`` off the left view's truth; the judged pixels only a cloud shadow
-changes are scored on their own.
+changes are scored on their own. The static pixels are also scored away from what has
+nothing to match: *textured* static pixels are those whose matching window holds no
+pixel without texture (no surface or a flat one; the pipeline's texture window, half of
+it either side: ``TEXTURE_MARGIN_PX``). A thin textured strip between plain walls, or
+the ground's edge under a blank sky, looks plain to any window that matches it, and
+may stay empty (issue 35's bar for the town scenes is set on these pixels).
 """
 
 from __future__ import annotations
@@ -26,16 +31,23 @@ from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from rigkit.capture import RESULTS_DIR
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
+from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth.io import SceneTruth, load_scene
 
 THRESHOLDS = (0.005, 0.01, 0.02, 0.03)
 OCCLUSION_TOLERANCE = 0.002  # relative depth difference that still counts as the same surface
 MOVED_WRONG = 0.03  # a moved pixel's depth this far off (relative) counts as wrong
+TEXTURE_MARGIN_PX = round(PipelineSettings().texture_window_px
+                          / PipelineSettings().stereo_scale / 2)
+"""Half the pipeline's texture window, in image px (9 stereo px at half resolution:
+9 px): a textured pixel this close to one with nothing to match is not scored as
+textured (module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -51,6 +63,8 @@ class ChangeMetrics:
     moved_wrong: float  # moved pixels given a depth off by more than MOVED_WRONG / moved pixels
     shadow_share: float  # judged pixels only a cloud shadow changes / judged pixels
     shadow_under_1: float  # of those, under 1 % error
+    textured_share: float = math.nan  # static pixels TEXTURE_MARGIN_PX clear of plain / static
+    textured_under_1: float = math.nan  # of those, under 1 % error
 
 
 @dataclass(frozen=True)
@@ -159,13 +173,19 @@ def change_metrics(
     judged: np.ndarray,
     moved: np.ndarray,
     shadow: np.ndarray,
+    plain: np.ndarray | None = None,
 ) -> ChangeMetrics:
-    """Score ``estimate`` separately on static, moved and shadow-changed pixels.
+    """Score ``estimate`` separately on static, moved and shadow-changed pixels, and on
+    the static pixels clear of ``plain`` ones (module docstring).
 
     estimate, truth: (H, W) float, metres, z in the left camera (NaN = none); judged,
     moved, shadow: (H, W) bool (:func:`visible_in_right`, ground_truth/moved_left.npy and
-    shadow_changed_left.npy)."""
+    shadow_changed_left.npy); plain: (H, W) bool, nothing to match there (no surface or
+    a flat one; None: where ``truth`` is NaN)."""
     static = judged & ~moved & ~shadow
+    textured = static & ~_near(~np.isfinite(truth) if plain is None else plain,
+                               TEXTURE_MARGIN_PX)
+    rel_textured = _relative_errors(estimate, truth, textured)
     shadowed = judged & ~moved & shadow
     rel = _relative_errors(estimate, truth, static)
     has = np.isfinite(rel)
@@ -181,7 +201,17 @@ def change_metrics(
         moved_wrong=_share(np.abs(rel_moved[np.isfinite(rel_moved)]) > MOVED_WRONG, moved),
         shadow_share=_share(shadowed, judged),
         shadow_under_1=_share(np.abs(rel_shadow[np.isfinite(rel_shadow)]) < 0.01, shadowed),
+        textured_share=_share(textured, static),
+        textured_under_1=_share(np.abs(rel_textured[np.isfinite(rel_textured)]) < 0.01,
+                                textured),
     )
+
+
+def _near(mask: np.ndarray, margin_px: int) -> np.ndarray:
+    """(H, W) bool: within ``margin_px`` of a ``mask`` pixel along both axes (a square
+    window centred there holds one)."""
+    kernel = np.ones((2 * margin_px + 1,) * 2, np.uint8)
+    return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
 
 
 def failed_metrics(scene: str, reason: str) -> Metrics:
@@ -226,7 +256,8 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None,
     changes = truth.changes()
     if changes is None:
         return metrics
-    return replace(metrics, changes=change_metrics(est, depth, judged, *changes))
+    plain = ~np.isfinite(depth) if flat is None else ~np.isfinite(depth) | flat
+    return replace(metrics, changes=change_metrics(est, depth, judged, *changes, plain))
 
 
 def evaluate_scenes(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[Metrics]:
@@ -275,20 +306,22 @@ def _changes_table(rows: Sequence[Metrics]) -> str:
     """The scenes where the world moves: static pixels (share of the judged ones, under
     1 %, bias), moved pixels (share of the image, given a depth, given one > 3 % off) and
     pixels only a cloud shadow changes (share, under 1 %)."""
-    header = ["scene", "static%", "static<1%", "bias%", "moved%", "given%", "wrong>3%",
-              "shadow%", "shadow<1%"]
+    header = ["scene", "static%", "static<1%", "textured<1%", "bias%", "moved%", "given%",
+              "wrong>3%", "shadow%", "shadow<1%"]
     lines: list[list[str] | None] = []
     for m in rows:
         c = m.changes
         if c is None:
             continue
         bias = "-" if math.isnan(c.static_bias) else f"{100 * c.static_bias:+.3f}"
-        lines.append([m.scene, _pct(c.static_share), _pct(c.static_under_1), bias,
+        lines.append([m.scene, _pct(c.static_share), _pct(c.static_under_1),
+                      _pct(c.textured_under_1), bias,
                       _pct(c.moved_share), _pct(c.moved_density), _pct(c.moved_wrong),
                       _pct(c.shadow_share), _pct(c.shadow_under_1)])
-    title = ("where the world moves: static = judged pixels nothing changed; moved = "
-             "pixels a mover covers in any view,\ngiven a depth, given one > 3 % off; "
-             "shadow = judged pixels only a cloud shadow changed")
+    title = ("where the world moves: static = judged pixels nothing changed (textured: "
+             f"{TEXTURE_MARGIN_PX} px clear of plain ones);\nmoved = pixels a mover covers in "
+             "any view, given a depth, given one > 3 % off; shadow = judged pixels only a "
+             "cloud shadow changed")
     return title + "\n" + render_table(header, lines, left=[0])
 
 

@@ -10,6 +10,7 @@ import pytest
 from rigkit.errors import InputError
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.evaluate import (
+    TEXTURE_MARGIN_PX,
     ChangeMetrics,
     change_metrics,
     depth_metrics,
@@ -96,6 +97,27 @@ def test_change_metrics_split_static_moved_and_shadowed() -> None:
     assert c.shadow_under_1 == pytest.approx(6 / 9)
 
 
+def test_textured_static_pixels_are_those_a_matching_window_away_from_plain_ones() -> None:
+    # A plain wall (columns 30-39) beside textured ground: the estimate misses the 4
+    # textured columns next to the wall, as a window-based matcher does.
+    truth = np.full((60, 60), 300.0)
+    plain = np.zeros((60, 60), bool)
+    plain[:, 30:40] = True
+    judged = ~plain
+    est = truth.copy()
+    est[:, 26:30] = np.nan
+    none = np.zeros((60, 60), bool)
+    c = change_metrics(est, truth, judged, none, none, plain)
+    static = judged.sum()
+    assert c.static_under_1 == pytest.approx(1 - 4 * 60 / static)
+    clear = 60 * (60 - 10 - 2 * TEXTURE_MARGIN_PX)  # columns a window away from the wall
+    assert c.textured_share == pytest.approx(clear / static)
+    assert c.textured_under_1 == 1.0
+    est[:, 5] = truth[:, 5] * 1.02  # a miss far from the wall counts
+    c = change_metrics(est, truth, judged, none, none, plain)
+    assert c.textured_under_1 == pytest.approx(1 - 60 / clear)
+
+
 def test_table_and_csv_grow_only_for_scenes_where_the_world_moves(tmp_path) -> None:
     still = depth_metrics(np.full((4, 4), 300.0), np.full((4, 4), 300.0), np.ones((4, 4), bool),
                           "still")
@@ -106,7 +128,7 @@ def test_table_and_csv_grow_only_for_scenes_where_the_world_moves(tmp_path) -> N
     assert header == ("scene,judged_pixels,density,under_0_5,under_1,under_2,under_3,"
                       "median_bias,failed,reason,false_depth")
     moving = replace(still, scene="moving", changes=ChangeMetrics(
-        0.9, 0.99, 0.001, 0.05, 0.8, 0.3, 0.02, 0.97))
+        0.9, 0.99, 0.001, 0.05, 0.8, 0.3, 0.02, 0.97, 0.8, 0.995))
     text = format_table([still, moving])
     first = format_table([still, replace(moving, changes=None)]).split("\nfailures")[0]
     assert text.startswith(first)  # the first table as it was
@@ -114,7 +136,8 @@ def test_table_and_csv_grow_only_for_scenes_where_the_world_moves(tmp_path) -> N
     write_csv([still, moving], tmp_path / "b.csv")
     rows = (tmp_path / "b.csv").read_text().splitlines()
     assert rows[0].startswith(header + ",static_share,")
-    assert rows[1].split(",")[-1] == "nan" and rows[2].split(",")[-1] == "0.97"
+    assert rows[1].split(",")[-1] == "nan" and rows[2].split(",")[-3] == "0.97"
+    assert rows[2].split(",")[-1] == "0.995" and "99.50" in text  # textured<1%
 
 
 def test_a_moving_scene_is_scored_by_what_changed(tmp_path) -> None:
