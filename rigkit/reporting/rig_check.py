@@ -80,6 +80,8 @@ def _field(label: str, text: str) -> str:
 
 def _camera_models(profile: RigProfile) -> str:
     specs = [profile.cameras[role] for role in CAMERA_ROLES]
+    if profile.one_camera:
+        return f"{specs[0].model} (one camera moved between the positions: one principal point)"
     if all(spec == specs[0] for spec in specs):
         return f"{specs[0].model} (one spec for left, right and back)"
     return "; ".join(f"{role}: {profile.cameras[role].model}" for role in CAMERA_ROLES)

@@ -19,6 +19,7 @@ def test_cli_table_for_the_p1000(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     assert "53,251 px +-1 %" in out
     assert "4.95 x 3.72 deg" in out
+    assert "one camera moved between the positions" in out  # the profile's one_camera
     assert "1/150" in out and "0.382" in out  # at the profile's nominal 300 m
     # 0.25 px disparity, 0.5 px offset and 0.48 px from a lens fitted to 0.5 px at the
     # corner: a = 0.74 px / (f C_lr); b = 1.73 %; z = sqrt(0.03^2 - b^2) / a.
