@@ -7,6 +7,7 @@ print the Table-1-style evaluation.
     python benchmarks/eval_synthetic.py --field --corner-distortion 0.2 --work out/field20-dist
     python benchmarks/eval_synthetic.py --field --corner-distortion 0.2 --give-distortion ...
     python benchmarks/eval_synthetic.py --field --set distance_m=500 --set hfov_deg=3 ...
+    python benchmarks/eval_synthetic.py --kind all --count 3 --work out/kinds
 
 Seeds 101-120 were never used while developing the pipeline (development used 1-5).
 ``--field`` renders what a real capture has (``rigkit synth --field``: sky, haze,
@@ -14,6 +15,13 @@ shimmer, exposure, vignetting); field seeds 201-220 were never tuned on (develop
 used 11-15). Besides Table 1 it prints the disparity-offset error against the
 pipeline's own standard error: the offset error is the median over judged pixels of
 f C_lr (1/z_est - 1/z_true), and coverage is the share of scenes within 2 sigma.
+
+``--kind NAME`` (repeatable; ``all`` for every one) runs a named kind of scene that
+``rigkit synth`` generates (``KINDS``: the settings and the held-out seeds of
+docs/results-log.md) instead of ``--field``/``--set``/``--burst``; with ``--count N``
+its first N held-out seeds. After the kinds' own tables a summary gives each kind's
+pixels under 1 %, largest |bias| and the share of its scenes whose offset is within 2
+sigma of what the run reported.
 """
 
 from __future__ import annotations
@@ -21,11 +29,12 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
 
+from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.burst import stack_burst
@@ -43,18 +52,54 @@ def corner_k1(params: SynthParams, percent: float) -> float:
     return percent / 100 / r2
 
 
-def scene_params(args: argparse.Namespace) -> SynthParams:
+def scene_params(args: argparse.Namespace, kind: Kind | None = None) -> SynthParams:
+    """The scenes' settings: ``kind``'s, else the command line's."""
+    if kind is None:
+        kind = Kind(args.field, args.burst, tuple(args.set), args.seeds, args.corner_distortion)
     params = SynthParams(width=args.width, height=args.height)
-    if args.field:
+    if kind.field:
         params = field_params(params)
-    if args.corner_distortion:
-        params = replace(params, distortion=(corner_k1(params, args.corner_distortion), 0, 0, 0, 0))
-    params = replace(params, burst=args.burst, **dict(args.set))
+    if kind.corner_distortion:
+        k1 = corner_k1(params, kind.corner_distortion)
+        params = replace(params, distortion=(k1, 0, 0, 0, 0))
+    params = replace(params, burst=kind.burst, **dict(kind.settings))
     params.validate()
     return params
 
 
 SETTING_KINDS = ("int", "float", "str", "bool")
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A kind of scene: the field preset or not, frames per position, scene settings
+    (SynthParams fields), the lens at the corner (% of the radius, not given to the
+    pipeline), and its held-out seeds (never tuned on)."""
+
+    field: bool
+    burst: int
+    settings: tuple[tuple[str, object], ...]
+    seeds: str
+    corner_distortion: float = 0.0
+
+
+TOWN = (("n_movers", 8), ("n_shadows", 3), ("n_facades", 2))
+ONE_CAMERA = (("one_camera", True), ("max_pp_offset_px", 40.0))
+KINDS = {
+    "ideal": Kind(False, 1, (), "101-120"),
+    "ideal-pp40": Kind(False, 1, (("max_pp_offset_px", 40.0),), "1-8"),
+    "one-camera": Kind(False, 1, ONE_CAMERA, "1-8"),
+    "field": Kind(True, 1, (), "201-220"),
+    "field-burst": Kind(True, 5, (), "201-220"),
+    "fine-air": Kind(True, 1, (("shimmer_spectrum", "fine"),), "601-603,605-621"),
+    "vonkarman": Kind(True, 1, (("shimmer_spectrum", "vonkarman"),), "501-520"),
+    "vonkarman-burst": Kind(True, 5, (("shimmer_spectrum", "vonkarman"),), "531-550"),
+    "town": Kind(True, 5, TOWN, "401-420"),
+    "town-one-camera": Kind(True, 5, TOWN + ONE_CAMERA, "401-420"),
+    "lens": Kind(True, 1, (("shimmer_px", 0.0),), "801-820", corner_distortion=0.2),
+}
+"""The kinds ``--kind`` names (docs/results-log.md: "The world moves, other air, lenses
+that do not fit" and issue 35)."""
 
 
 def synth_setting(text: str) -> tuple[str, float | int | str | bool]:
@@ -95,48 +140,33 @@ def lens_note(res, truth) -> str:
 
 
 def seed_list(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
+    """``101-120``, ``7`` or ranges joined by commas (``601-603,605-621``)."""
+    seeds = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        seeds += range(int(lo), int(hi or lo) + 1)
+    return seeds
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    ap.add_argument("--seeds", default="101-120")
-    ap.add_argument("--width", type=int, default=4608)
-    ap.add_argument("--height", type=int, default=3456)
-    ap.add_argument("--work", type=Path, default=Path("out/eval"))
-    ap.add_argument("--field", action="store_true", help="field conditions (rigkit synth --field)")
-    ap.add_argument("--corner-distortion", type=float, default=0.0,
-                    help="radial distortion, %% of the radius at the image corner (not given "
-                    "to the pipeline)")
-    ap.add_argument("--give-distortion", action="store_true",
-                    help="tell the pipeline the scene's true lens distortion")
-    ap.add_argument("--fixed-lens", action="store_true",
-                    help="take the distortion as given (zeros unless --give-distortion) "
-                    "instead of fitting it from the views (distortion_terms = 0)")
-    ap.add_argument("--set", type=synth_setting, action="append", default=[],
-                    metavar="NAME=VALUE", help="a scene setting (a SynthParams field) over "
-                    "the preset's, e.g. distance_m=500; repeat for several")
-    ap.add_argument("--three-cameras", action="store_true",
-                    help="do not tell the pipeline that one camera took a scene's views "
-                    "(--set one_camera=true; by default the rig says so, as a profile's "
-                    "one_camera: true does)")
-    ap.add_argument("--burst", type=int, default=1,
-                    help="frames per position, median-stacked (the time includes loading "
-                    "and stacking)")
-    args = ap.parse_args()
-    try:
-        params = scene_params(args)
-    except RigkitError as exc:
-        ap.error(str(exc))
-    settings = PipelineSettings(distortion_terms=0) if args.fixed_lens else PipelineSettings()
+@dataclass
+class Run:
+    """One set of scenes evaluated: the scores and, per scene, whether its offset came
+    within 2 sigma and its fitted lens corner did."""
+
+    rows: list
+    coverage: list[bool]
+    lens_coverage: list[bool]
+
+
+def run_scenes(params: SynthParams, seeds: list[int], work: Path, args: argparse.Namespace,
+               settings: PipelineSettings) -> Run:
+    """Render the seeds that are missing under ``work``, estimate depth, score them and
+    print the Table-1-style evaluation."""
     coverage, lens_coverage = [], []
-    scenes, depth_dir = args.work / "scenes", args.work / "depth"
+    scenes, depth_dir = work / "scenes", work / "depth"
     depth_dir.mkdir(parents=True, exist_ok=True)
     dirs = []
-    for seed in seed_list(args.seeds):
+    for seed in seeds:
         d = scenes / f"seed-{seed}"
         dirs.append(d)
         if not (d / "scene.yaml").is_file():
@@ -176,8 +206,83 @@ def main() -> int:
     if lens_coverage:
         n = len(lens_coverage)
         print(f"fitted lens corner within 2 sigma: {sum(lens_coverage)} of {n} scenes")
-    write_csv(rows, args.work / "eval.csv")
-    return 1 if any(m.failed for m in rows) else 0
+    write_csv(rows, work / "eval.csv")
+    return Run(rows, coverage, lens_coverage)
+
+
+def summary(runs: dict[str, Run]) -> str:
+    """One line per kind: scenes, mean and worst pixels under 1 %, largest |bias|, and
+    the share of scenes whose offset came within 2 sigma."""
+    lines = []
+    for name, run in runs.items():
+        ok = [m for m in run.rows if not m.failed]
+        under = [100 * m.under_1 for m in ok]
+        bias = max((abs(100 * m.median_bias) for m in ok), default=float("nan"))
+        within = (f"{sum(run.coverage)} of {len(run.coverage)} "
+                  f"({100 * sum(run.coverage) / len(run.coverage):.0f} %)"
+                  if run.coverage else "-")
+        lines.append([name, str(len(run.rows)), f"{np.mean(under):.2f}" if under else "-",
+                      f"{min(under):.2f}" if under else "-", f"{bias:.3f}", within])
+    return render_table(["kind", "scenes", "<1% mean", "<1% worst", "max |bias|%",
+                         "offset within 2 sigma"], lines, left=[0])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--seeds", default="101-120")
+    ap.add_argument("--width", type=int, default=4608)
+    ap.add_argument("--height", type=int, default=3456)
+    ap.add_argument("--work", type=Path, default=Path("out/eval"))
+    ap.add_argument("--field", action="store_true", help="field conditions (rigkit synth --field)")
+    ap.add_argument("--corner-distortion", type=float, default=0.0,
+                    help="radial distortion, %% of the radius at the image corner (not given "
+                    "to the pipeline)")
+    ap.add_argument("--give-distortion", action="store_true",
+                    help="tell the pipeline the scene's true lens distortion")
+    ap.add_argument("--fixed-lens", action="store_true",
+                    help="take the distortion as given (zeros unless --give-distortion) "
+                    "instead of fitting it from the views (distortion_terms = 0)")
+    ap.add_argument("--set", type=synth_setting, action="append", default=[],
+                    metavar="NAME=VALUE", help="a scene setting (a SynthParams field) over "
+                    "the preset's, e.g. distance_m=500; repeat for several")
+    ap.add_argument("--three-cameras", action="store_true",
+                    help="do not tell the pipeline that one camera took a scene's views "
+                    "(--set one_camera=true; by default the rig says so, as a profile's "
+                    "one_camera: true does)")
+    ap.add_argument("--burst", type=int, default=1,
+                    help="frames per position, median-stacked (the time includes loading "
+                    "and stacking)")
+    ap.add_argument("--kind", action="append", default=[], metavar="NAME",
+                    choices=[*KINDS, "all"],
+                    help="a named kind of scene (repeatable; all: every one): "
+                    + ", ".join(KINDS))
+    ap.add_argument("--count", type=int, default=0,
+                    help="with --kind: the first N of each kind's held-out seeds")
+    args = ap.parse_args()
+    settings = PipelineSettings(distortion_terms=0) if args.fixed_lens else PipelineSettings()
+    names = list(KINDS) if "all" in args.kind else args.kind
+    try:
+        sets = ({name: (scene_params(args, KINDS[name]), _seeds(KINDS[name].seeds, args.count),
+                        args.work / name) for name in names} if names else
+                {"": (scene_params(args), seed_list(args.seeds), args.work)})
+    except RigkitError as exc:
+        ap.error(str(exc))
+    runs = {}
+    for name, (params, seeds, work) in sets.items():
+        if name:
+            print(f"\n== {name} ({len(seeds)} scenes, {work})")
+        runs[name] = run_scenes(params, seeds, work, args, settings)
+    if names:
+        print("\n" + summary(runs))
+    return 1 if any(m.failed for run in runs.values() for m in run.rows) else 0
+
+
+def _seeds(text: str, count: int) -> list[int]:
+    """A kind's held-out seeds, the first ``count`` of them (0: all)."""
+    seeds = seed_list(text)
+    return seeds[:count] if count else seeds
 
 
 if __name__ == "__main__":
