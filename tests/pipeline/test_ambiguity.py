@@ -8,7 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rigkit.pipeline.ambiguity import remove_ambiguity
+from rigkit.pipeline.ambiguity import (
+    magnification_variance,
+    remove_ambiguity,
+    residual_shear_sq,
+)
 from rigkit.pipeline.features import match_views
 from rigkit.pipeline.settings import PipelineSettings
 
@@ -57,3 +61,35 @@ def test_one_shared_principal_point_adds_nothing(back_matches, result, rig) -> N
     assert default.offset_sigma_px == pytest.approx(
         np.hypot(shared.offset_sigma_px, default.principal_point_sigma_px)
     )
+
+
+def test_residual_shear_is_recovered_from_noisy_residuals() -> None:
+    rng = np.random.default_rng(5)
+    px = rng.uniform(0, 4000, (3000, 2))
+    centred = px - px.mean(axis=0)
+    # A shear (2e-4, -1e-4), a turn and a magnification (which poses absorb, not shears).
+    A = np.array([[2e-4 + 3e-4, -1e-4 - 4e-4], [-1e-4 + 4e-4, -2e-4 + 3e-4]])
+    residuals = centred @ A.T + rng.normal(0, 0.3, px.shape)
+    assert residual_shear_sq(px, residuals) == pytest.approx(5e-8, rel=0.1)
+    # Noise alone: its scatter's share is taken off, nothing is left.
+    assert residual_shear_sq(px, rng.normal(0, 0.3, px.shape)) < 2e-11
+
+
+def test_magnification_variance_pools_three_modes_of_the_air() -> None:
+    # Second derivatives of an isotropic phase screen at the frame's scale: var(phi_xx) =
+    # var(phi_yy) = 3c, var(phi_xy) = c, cov(phi_xx, phi_yy) = c (c = 1 here); the right
+    # view shows the stretch phi_yy, the back view the two shears, and the offset's error
+    # is the magnification (phi_xx + phi_yy) / 2.
+    rng = np.random.default_rng(11)
+    xx, yy = rng.multivariate_normal([0, 0], [[3, 1], [1, 3]], 200_000).T
+    xy = rng.normal(0, 1, xx.size)
+    magnification = (xx + yy) / 2
+    shear_sq = ((xx - yy) / 2) ** 2 + xy**2
+    pooled = magnification_variance(yy**2, shear_sq)
+    stretch_only = magnification_variance(yy**2, 0.0) * 3  # the stretch alone, 2/3 of it
+    assert np.mean(pooled) == pytest.approx(np.var(magnification), rel=0.02)  # unbiased
+    assert np.mean(stretch_only) == pytest.approx(np.var(magnification), rel=0.02)
+    # One frame, one draw: a 2 sigma interval from the pooled estimate misses less often.
+    missed_pooled = np.mean(np.abs(magnification) > 2 * np.sqrt(pooled))
+    missed_stretch = np.mean(np.abs(magnification) > 2 * np.sqrt(stretch_only))
+    assert missed_pooled < 0.6 * missed_stretch
