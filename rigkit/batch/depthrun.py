@@ -68,7 +68,9 @@ class DepthRun:
             "image_size_px": [self.left.shape[1], self.left.shape[0]],
             "rig": {"name": self.profile.name, "focal_px": rig.focal_px,
                     "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
-                    "distortion_k1_k2_p1_p2_k3": list(rig.distortion)},
+                    "distortion_k1_k2_p1_p2_k3": list(rig.distortion),
+                    "one_camera": rig.one_camera,
+                    "principal_points_px": [list(p) for p in rig.principal_points_px]},
             # Back-projection of the depth map (rigkit export), pixel centres at integers.
             "left_camera_px": {"f": camera.focal_px, "cx": camera.cx_px, "cy": camera.cy_px},
             "warnings": list(self.warnings),

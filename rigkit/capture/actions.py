@@ -246,7 +246,7 @@ def stale_results(session: Session) -> str | None:
         return f"results/ are from run {run}, before the frames changed; process again"
     rig, used = session.rig().geometry(), meta.get("rig") or {}
     now = {"focal_px": rig.focal_px, "baseline_lr_m": rig.baseline_lr_m,
-           "baseline_lb_m": rig.baseline_lb_m}
+           "baseline_lb_m": rig.baseline_lb_m, "one_camera": rig.one_camera}
     if any(used.get(key, value) != value for key, value in now.items()):
         return f"results/ are from run {run}, before the rig changed; process again"
     done = session.path / RESULTS_DIR / LOG_NAME
