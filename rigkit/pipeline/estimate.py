@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -88,9 +89,9 @@ class DepthResult:
         np.bitwise_or(out, np.uint8(FLAG_DISAGREE), out=out, where=self.disagree)
         return out
 
-    def offset_warning(self) -> str | None:
-        """See :func:`offset_warning`."""
-        return offset_warning(self.offset_depth_fraction, self.offset_sources())
+    def offset_warning(self, frames: int = 1) -> str | None:
+        """See :func:`offset_warning`; ``frames`` per position were stacked."""
+        return offset_warning(self.offset_depth_fraction, self.offset_sources(), frames)
 
     def offset_sources(self) -> dict[str, float]:
         """What the disparity offset's standard error is made of (px, one sigma each,
@@ -175,18 +176,43 @@ OFFSET_ADVICE = {
 """What the user can do about each part of :meth:`DepthResult.offset_sources`."""
 
 
-def offset_warning(offset_depth_fraction: float, sources: Mapping[str, float]) -> str | None:
+def offset_warning(
+    offset_depth_fraction: float, sources: Mapping[str, float], frames: int = 1
+) -> str | None:
     """One line for the user where the offset's uncertainty alone (``offset_depth_fraction``
     of :class:`DepthResult`) exceeds ``OFFSET_WARNING_FRACTION`` of depth, naming its
     largest part of ``sources`` (:meth:`DepthResult.offset_sources`) and what reduces
-    it; else None."""
+    it, with how many frames per position would (:func:`frames_for_offset`) where the
+    air's part is the largest, the run having had ``frames``; else None."""
     if not offset_depth_fraction > OFFSET_WARNING_FRACTION:
         return None
     largest = max(OFFSET_ADVICE, key=lambda name: sources.get(name, 0.0))
-    return (
-        f"the disparity offset alone leaves +-{100 * offset_depth_fraction:.2f} % "
-        f"of depth (1 sigma) at the median range, most of it from {OFFSET_ADVICE[largest]}"
-    )
+    line = (f"the disparity offset alone leaves +-{100 * offset_depth_fraction:.2f} % "
+            f"of depth (1 sigma) at the median range, most of it from {OFFSET_ADVICE[largest]}")
+    needed = frames_for_offset(offset_depth_fraction, sources, frames)
+    if largest == "air" and needed is not None:
+        line += (f"; about {needed} frames per position would bring it to "
+                 f"{100 * OFFSET_WARNING_FRACTION:.1f} % (the air's part falls as "
+                 "1 / sqrt(frames))")
+    return line
+
+
+def frames_for_offset(
+    offset_depth_fraction: float, sources: Mapping[str, float], frames: int
+) -> int | None:
+    """Frames per position under which the offset's uncertainty would stay within
+    ``OFFSET_WARNING_FRACTION`` of depth, for a run with ``frames`` that left
+    ``offset_depth_fraction`` made of ``sources`` (px; only ``air`` falls with frames,
+    as 1 / sqrt(frames), the scatter of independent draws); None where the other parts
+    alone exceed it, so that no number of frames would."""
+    total_px = float(np.sqrt(sum(v**2 for v in sources.values())))
+    if not total_px > 0:
+        return None
+    goal_px = OFFSET_WARNING_FRACTION / offset_depth_fraction * total_px
+    room = goal_px**2 - (total_px**2 - sources.get("air", 0.0) ** 2)
+    if room <= 0:
+        return None
+    return max(frames + 1, math.ceil(frames * sources.get("air", 0.0) ** 2 / room))
 
 
 def _check_sizes(left: np.ndarray, right: np.ndarray, back: np.ndarray) -> None:

@@ -53,3 +53,15 @@ def test_the_offset_warning_names_its_largest_part(result) -> None:
     blurred = replace(result, offset_depth_fraction=0.01, lens_fit=lens_fit,
                       ambiguity=replace(amb, offset_sigma_px=3.0, principal_point_sigma_px=0.2))
     assert "give the lens in the rig profile" in str(blurred.offset_warning())
+
+
+def test_the_air_advice_says_how_many_frames_would_do(result) -> None:
+    # 3.0 px of offset sigma, 0.1 of it from principal points, leave 1 % of depth: the
+    # air's 2.998 px must fall to sqrt(0.9^2 - 0.1^2) px for 0.3 %, so by sqrt(12.0).
+    amb = replace(result.ambiguity, offset_sigma_px=3.0, principal_point_sigma_px=0.1)
+    shaky = replace(result, offset_depth_fraction=0.01, lens_fit=None, ambiguity=amb)
+    assert "about 12 frames per position would bring it to 0.3 %" in str(shaky.offset_warning())
+    assert "about 57 frames per position" in str(shaky.offset_warning(frames=5))
+    # Where the principal points alone leave more than 0.3 %, no number of frames will.
+    stuck = replace(shaky, ambiguity=replace(amb, principal_point_sigma_px=1.0))
+    assert "would bring it" not in str(stuck.offset_warning())
