@@ -33,10 +33,11 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Sequence
-from concurrent.futures import Future
+import threading
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -78,6 +79,18 @@ RANGE_FACTOR = 2.0
 
 
 @dataclass(frozen=True)
+class CheckFrame:
+    """A frame as the on-site checks take it: ``image``, (h, w) float32 grey in [0, 255]
+    (read-only), its longest side at most ``CHECK_SIDE_PX``; ``reduction``,
+    full-resolution px per check px (>= 1); ``clipped``, the share of the
+    full-resolution frame's pixels at or above :data:`CLIP_LEVEL`."""
+
+    image: np.ndarray
+    reduction: float
+    clipped: float
+
+
+@dataclass(frozen=True)
 class ViewMap:
     """How another view maps onto the left one, in full-resolution pixels.
 
@@ -116,9 +129,10 @@ def burst_misfit(session: Session, position: str, path: Path) -> str | None:
     try:
         cache = session.path / DERIVED_DIR
         grey = load_linear_grey(path, cache, file_sha256(path), session.rig().image_size)
-        new = _reduced(to_pipeline([grey], linear=is_raw(path))[0])[0]
-        first, reduction = check_image(session, frames[0])
-        view = map_views(first, new, reduction, session.rig().focal_px)
+        new = _reduced(to_pipeline([grey], linear=is_raw(path), overwrite=True)[0])[0]
+        first = check_frame(session, frames[0])
+        view = map_views(first.image, new, first.reduction, session.rig().focal_px,
+                         reference(session, frames[0]))
     except RigkitError:
         return None
     moved = view.parallax is not None and view.parallax.moved
@@ -181,19 +195,83 @@ def decoded(session: Session, frame: Frame) -> np.ndarray:
     return load_linear_grey(session.path / frame.file, session.path / DERIVED_DIR, frame.sha256)
 
 
-def full_image(session: Session, frame: Frame, grey: np.ndarray | None = None) -> np.ndarray:
-    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey;
-    ``grey``: the frame as :func:`decoded` gives it, where already read."""
-    grey = decoded(session, frame) if grey is None else grey
-    return to_pipeline([grey], linear=is_raw(session.path / frame.file))[0]
+def full_image(session: Session, frame: Frame) -> np.ndarray:
+    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey."""
+    grey = decoded(session, frame)
+    return to_pipeline([grey], linear=is_raw(session.path / frame.file), overwrite=True)[0]
 
 
-def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX,
-                grey: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """A frame as (h, w) float32 grey in [0, 255], its longest side at most ``side_px``,
-    and the reduction factor (full-resolution px per check px, >= 1); ``grey`` as for
-    :func:`full_image`."""
-    return _reduced(full_image(session, frame, grey), side_px)
+K = TypeVar("K", bound=Hashable)
+V = TypeVar("V")
+_KEPT = 6
+"""Frames (and left frames prepared, and view maps) the checks keep in memory, the
+newest: a capture's left, right and back frames and a burst's first and newest frame.
+A check image is 3 MB; a prepared left frame 6 MB."""
+_lock = threading.Lock()
+
+
+def _kept(cache: dict[K, V], key: K, compute: Callable[[], V]) -> V:
+    """``cache[key]``, computed first where missing; only the ``_KEPT`` newest stay."""
+    with _lock:
+        if key in cache:
+            return cache[key]
+    value = compute()
+    with _lock:
+        cache[key] = value
+        while len(cache) > _KEPT:
+            del cache[next(iter(cache))]
+    return value
+
+
+_CHECK_FRAMES: dict[str, CheckFrame] = {}
+"""Frames decoded and reduced for the checks, by their SHA-256: a frame is decoded once
+for all its checks (its own, the later positions' against it, the preview)."""
+_REFERENCES: dict[str, Reference] = {}
+"""Left check images prepared for matching (:func:`prepare_left`), by SHA-256."""
+_VIEWS: dict[tuple[str, str, float | None], ViewMap] = {}
+"""View maps (:func:`map_views`) by the left and the other frame's SHA-256 and the focal
+length that asks for the parallax."""
+
+
+def check_frame(session: Session, frame: Frame) -> CheckFrame:
+    """The :class:`CheckFrame` of ``frame``, decoded the first time only."""
+    return _kept(_CHECK_FRAMES, frame.sha256, lambda: _check_frame(session, frame))
+
+
+def _check_frame(session: Session, frame: Frame) -> CheckFrame:
+    grey = decoded(session, frame)
+    clipped = np.count_nonzero(grey >= CLIP_LEVEL) / grey.size
+    linear = is_raw(session.path / frame.file)
+    image, reduction = _reduced(to_pipeline([grey], linear=linear, overwrite=True)[0])
+    image.flags.writeable = False
+    return CheckFrame(image, reduction, clipped)
+
+
+def check_image(session: Session, frame: Frame) -> tuple[np.ndarray, float]:
+    """A frame as (h, w) float32 grey in [0, 255] (read-only), its longest side at most
+    ``CHECK_SIDE_PX``, and the reduction factor (full-resolution px per check px, >= 1)."""
+    checked = check_frame(session, frame)
+    return checked.image, checked.reduction
+
+
+def reference(session: Session, left: Frame, pool: ViewPool | None = None) -> Reference:
+    """The left ``frame``'s check image prepared for matching (:func:`prepare_left`, in
+    ``pool``'s threads where given), the first time only."""
+    image = check_frame(session, left).image
+    return _kept(_REFERENCES, left.sha256, lambda: prepare_left(image, MATCH_POINTS, pool=pool))
+
+
+def view_map(session: Session, position: str, left: Frame, frame: Frame) -> ViewMap:
+    """How ``position``'s ``frame`` maps onto the ``left`` frame (:func:`map_views`, with
+    the parallax for a right frame), the first time only."""
+    focal = session.rig().focal_px if position == "right" else None
+
+    def compute() -> ViewMap:
+        first = check_frame(session, left)
+        other = check_frame(session, frame).image
+        return map_views(first.image, other, first.reduction, focal, reference(session, left))
+
+    return _kept(_VIEWS, (left.sha256, frame.sha256, focal), compute)
 
 
 def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarray, float]:
@@ -284,13 +362,10 @@ def exif_check(session: Session, position: str) -> Finding:
     return Finding("exif", f"EXIF agrees with the other frames and the profile{note}", ok=True)
 
 
-def exposure_check(session: Session, frame: Frame, grey: np.ndarray | None = None
-                   ) -> Finding:
+def exposure_check(session: Session, frame: Frame) -> Finding:
     """Clipped highlights: where the sensor saturated there is no texture to match, and
-    a frame too bright for one position is so for all (they must share the exposure).
-    ``grey``: the frame as :func:`decoded` gives it, where already read."""
-    grey = decoded(session, frame) if grey is None else grey
-    clipped = float(np.mean(grey >= CLIP_LEVEL))
+    a frame too bright for one position is so for all (they must share the exposure)."""
+    clipped = check_frame(session, frame).clipped
     if clipped <= MAX_BLOWN:
         return Finding("exposure", f"highlights: {100 * clipped:.2f} % clipped", ok=True)
     return Finding(
@@ -435,28 +510,29 @@ def _median_shimmer(measured: Sequence[Shimmer]) -> Shimmer:
 
 
 def onsite_checks(session: Session, position: str) -> list[Finding]:
-    """Every check for the newest frame of ``position`` (which must have one). The
-    frames it needs (this, the left and, for a back frame, the right one: its roles
-    check) are decoded once each, side by side, and matched to the left one prepared
-    once; a failure shows where the checks in turn need that frame, not before."""
+    """Every check for the newest frame of ``position`` (which must have one). Each frame
+    is decoded once (:func:`check_frame`), the left one prepared for matching once and
+    each view mapped onto it once, for all the checks that need them, these and later
+    ones (the back frame's roles check takes the right frame's map); what is not known
+    yet is found side by side. A failure shows where the checks in turn need that frame,
+    not before."""
     newest = {p: frames_at(session, p)[-1] for p in POSITIONS if frames_at(session, p)}
     compared = position != "left" and "left" in newest
-    wanted = [position]
-    if compared:
-        wanted += ["left"] + (["right"] if position == "back" and "right" in newest else [])
     with ViewPool() as pool:
-        greys = {p: pool.submit(decoded, session, newest[p]) for p in wanted}
-        checks = [exif_check(session, position),
-                  exposure_check(session, newest[position], greys[position].result())]
+        frames = {p: pool.submit(check_frame, session, newest[p])
+                  for p in ([position, "left"] if compared else [position])}
+        frames[position].result()
+        checks = [exif_check(session, position), exposure_check(session, newest[position])]
         shimmer = shimmer_check(session, position)
         if shimmer is not None:
             checks.append(shimmer)
         if not compared:
             return checks
-        left, reduction = check_image(session, newest["left"], grey=greys["left"].result())
-        ref = prepare_left(left, MATCH_POINTS, pool=pool)
-        views = {p: pool.submit(_view_from, session, p, newest[p], greys[p], left, reduction, ref)
-                 for p in wanted if p != "left"}
+        frames["left"].result()
+        reference(session, newest["left"], pool)
+        mapped = [position] + (["right"] if position == "back" and "right" in newest else [])
+        views = {p: pool.submit(view_map, session, p, newest["left"], newest[p])
+                 for p in mapped}
         try:
             view = views[position].result()
         except RigkitError as exc:
@@ -471,19 +547,10 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
         return [*checks, *back]
 
 
-def _view_from(session: Session, position: str, frame: Frame, grey: Future[np.ndarray],
-               left: np.ndarray, reduction: float, ref: Reference) -> ViewMap:
-    """:func:`view_of`, the frame's decoding (``grey``) and ``left``'s ``ref`` under way."""
-    other, _ = check_image(session, frame, grey=grey.result())
-    focal = session.rig().focal_px if position == "right" else None
-    return map_views(left, other, reduction, focal, ref)
-
-
-def view_of(session: Session, position: str, left: np.ndarray, reduction: float) -> ViewMap:
-    """How ``position``'s newest frame maps onto the left check image ``left``."""
-    other, _ = check_image(session, frames_at(session, position)[-1])
-    focal = session.rig().focal_px if position == "right" else None
-    return map_views(left, other, reduction, focal)
+def view_of(session: Session, position: str) -> ViewMap:
+    """How ``position``'s newest frame maps onto the left one's (:func:`view_map`)."""
+    return view_map(session, position, frames_at(session, "left")[-1],
+                    frames_at(session, position)[-1])
 
 
 def _roles_check(right: ViewMap, back: ViewMap, baseline_lb_m: float) -> list[Finding]:
