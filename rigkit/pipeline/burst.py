@@ -61,7 +61,9 @@ def median(frames: Sequence[np.ndarray], rows: int = 32, pool: ViewPool | None =
 
     Each block of ``rows`` rows is sorted across the frames by an odd-even
     transposition network of element-wise min/max (N rounds; Knuth, TAOCP vol. 3,
-    5.3.4), small enough to stay in cache. :func:`numpy.median` over a stacked axis
+    5.3.4), small enough to stay in cache, less the halves of its compare-exchanges
+    whose result the middle never reads (:func:`_median_network`: 14 of 20 for 5
+    frames). :func:`numpy.median` over a stacked axis
     selects within each pixel's N values one pixel at a time: at 16 MP this is ~25x
     faster for 5 frames and ~13x for 16. The two halves of the rows run in ``pool``'s
     threads where one is given.
@@ -69,10 +71,11 @@ def median(frames: Sequence[np.ndarray], rows: int = 32, pool: ViewPool | None =
     n, mid = len(frames), len(frames) // 2
     height = frames[0].shape[0]
     out = np.empty(frames[0].shape, np.float32)
+    network = _median_network(n)
 
     def blocks(r0: int, r1: int) -> None:
         for b0 in range(r0, r1, rows):
-            _median_block(frames, out, slice(b0, min(b0 + rows, r1)), n, mid)
+            _median_block(frames, out, slice(b0, min(b0 + rows, r1)), network, mid)
 
     # Halves of the rows in threads (a pool's, where given): each block is its own.
     half = -(-height // (2 * rows)) * rows
@@ -81,16 +84,41 @@ def median(frames: Sequence[np.ndarray], rows: int = 32, pool: ViewPool | None =
     return out
 
 
-def _median_block(frames: Sequence[np.ndarray], out: np.ndarray, block_rows: slice, n: int,
-                  mid: int) -> None:
-    """:func:`median`'s rows ``block_rows`` into ``out``."""
+def _median_network(n: int) -> list[tuple[int, bool, bool]]:
+    """The compare-exchanges of the odd-even transposition network on ``n`` values that
+    the median (the middle one, or the two middle ones for even ``n``) depends on, in
+    order: (i, lower, upper) sorts places i and i + 1, ``lower``: the smaller value is
+    read later (into place i), ``upper``: the larger (into i + 1). Found backwards from
+    the middle; min and max only pick values, so the median is the full sort's, bit
+    for bit."""
+    mid = n // 2
+    read = {mid} if n % 2 else {mid - 1, mid}
+    network = []
+    for rnd in reversed(range(n)):
+        for i in range(rnd % 2, n - 1, 2):
+            lower, upper = i in read, i + 1 in read
+            if lower or upper:
+                network.append((i, lower, upper))
+                read |= {i, i + 1}
+    return network[::-1]
+
+
+def _median_block(frames: Sequence[np.ndarray], out: np.ndarray, block_rows: slice,
+                  network: list[tuple[int, bool, bool]], mid: int) -> None:
+    """:func:`median`'s rows ``block_rows`` into ``out`` through ``network``
+    (:func:`_median_network`)."""
     vals = [np.array(f[block_rows], dtype=np.float32) for f in frames]  # copies
     spare = np.empty_like(vals[0])
-    for rnd in range(n):
-        for i in range(rnd % 2, n - 1, 2):
+    for i, lower, upper in network:
+        if not upper:
+            np.minimum(vals[i], vals[i + 1], out=vals[i])
+        elif not lower:
+            np.maximum(vals[i], vals[i + 1], out=vals[i + 1])
+        else:
             np.minimum(vals[i], vals[i + 1], out=spare)
             np.maximum(vals[i], vals[i + 1], out=vals[i + 1])
             vals[i], spare = spare, vals[i]
+    n = len(frames)
     block = out[block_rows]
     if n % 2:
         block[:] = vals[mid]
