@@ -10,6 +10,7 @@ the most textured crop), which is all that a tripod moves between shots of a bur
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from contextlib import nullcontext
 
@@ -45,9 +46,7 @@ def stack_burst(frames: Sequence[np.ndarray], what: str = "burst") -> np.ndarray
                 f"{what}: frame {i} is shifted by ({dx:+.0f}, {dy:+.0f}) px from frame 1; "
                 "all frames of a burst must come from one camera position"
             )
-        M = np.array([[1.0, 0.0, -dx], [0.0, 1.0, -dy]])
-        return cv2.warpAffine(frame, M, (ref.shape[1], ref.shape[0]), flags=cv2.INTER_CUBIC,
-                              borderMode=cv2.BORDER_REPLICATE)
+        return shifted(frame, dx, dy)
 
     with ViewPool() as pool:  # each frame on its own; the first problem in order is raised
         return median([ref, *pool.map(aligned, range(2, len(frames) + 1), frames[1:])],
@@ -125,6 +124,41 @@ def _median_block(frames: Sequence[np.ndarray], out: np.ndarray, block_rows: sli
     else:
         np.add(vals[mid - 1], vals[mid], out=block)
         block *= np.float32(0.5)
+
+
+CUBIC_A = -0.75
+"""Keys' bicubic kernel parameter (OpenCV's INTER_CUBIC)."""
+
+
+def shifted(frame: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """``frame`` resampled at (x + dx, y + dy) for every pixel (x, y): (H, W) float32,
+    Keys' bicubic interpolation (``CUBIC_A``), the edges replicated: OpenCV's
+    INTER_CUBIC translation (``cv2.warpAffine``), within 1e-4 of the values' range
+    (OpenCV rounds the coordinates it samples at). A translation is separable: two
+    4-tap filters, half ``cv2.warpAffine``'s time at 16 MP."""
+    h, w = frame.shape
+    (ix, kx), (iy, ky) = _cubic_taps(dx), _cubic_taps(dy)
+    # Output pixel x reads columns x + ix - 1 ... x + ix + 2 (rows likewise): a border
+    # replicated as wide as that needs, then a window whose pixel x is column x + ix - 1.
+    pad = (max(0, 1 - iy), max(0, iy + 2), max(0, 1 - ix), max(0, ix + 2))
+    padded = cv2.copyMakeBorder(frame, *pad, cv2.BORDER_REPLICATE)
+    y0, x0 = iy - 1 + pad[0], ix - 1 + pad[2]
+    window = padded[y0 : y0 + h + 3, x0 : x0 + w + 3]
+    out = cv2.sepFilter2D(window, cv2.CV_32F, kx, ky, anchor=(0, 0),
+                          borderType=cv2.BORDER_REPLICATE)
+    return np.asarray(out[:h, :w])
+
+
+def _cubic_taps(shift: float) -> tuple[int, np.ndarray]:
+    """(i, taps): resampling at x + ``shift`` is sum_k taps[k] * image(x + i - 1 + k),
+    k = 0...3; taps (4,) float32, Keys' kernel at the fraction of ``shift``."""
+    whole = math.floor(shift)
+    t = shift - whole
+    d = np.array([1.0 + t, t, 1.0 - t, 2.0 - t])
+    a = CUBIC_A
+    near = ((a + 2) * d - (a + 3)) * d * d + 1  # |d| <= 1
+    far = ((a * d - 5 * a) * d + 8 * a) * d - 4 * a  # 1 < |d| < 2
+    return whole, np.where(d <= 1.0, near, far).astype(np.float32)
 
 
 def frame_shift(ref: np.ndarray, frame: np.ndarray) -> tuple[float, float]:
