@@ -60,7 +60,7 @@ from rigkit.pipeline.checks import (
 from rigkit.pipeline.features import Reference, match_to, prepare_left
 from rigkit.pipeline.rectify import pseudo_rectify
 from rigkit.pipeline.settings import PipelineSettings
-from rigkit.pipeline.shimmer import Shimmer, measure_shimmer
+from rigkit.pipeline.shimmer import Shimmer, ShimmerStart, shimmer_from, shimmer_start
 from rigkit.rig.bursts import burst_advice
 from rigkit.rig.findings import Finding
 from rigkit.rig.profile import RigProfile
@@ -236,16 +236,34 @@ length that asks for the parallax."""
 
 def check_frame(session: Session, frame: Frame) -> CheckFrame:
     """The :class:`CheckFrame` of ``frame``, decoded the first time only."""
-    return _kept(_CHECK_FRAMES, frame.sha256, lambda: _check_frame(session, frame))
+    return _kept(_CHECK_FRAMES, frame.sha256, lambda: _decode_for_checks(session, frame)[0])
 
 
-def _check_frame(session: Session, frame: Frame) -> CheckFrame:
+def _decode_for_checks(session: Session, frame: Frame) -> tuple[CheckFrame, np.ndarray]:
+    """``frame`` decoded: its :class:`CheckFrame`, and the frame at full resolution as
+    :func:`full_image` gives it."""
     grey = decoded(session, frame)
     clipped = np.count_nonzero(grey >= CLIP_LEVEL) / grey.size
     linear = is_raw(session.path / frame.file)
-    image, reduction = _reduced(to_pipeline([grey], linear=linear, overwrite=True)[0])
+    full = to_pipeline([grey], linear=linear, overwrite=True)[0]
+    image, reduction = _reduced(full)
     image.flags.writeable = False
-    return CheckFrame(image, reduction, clipped)
+    return CheckFrame(image, reduction, clipped), full
+
+
+def _newest_for_checks(session: Session, position: str) -> np.ndarray | None:
+    """Decodes ``position``'s newest frame for its checks (:func:`check_frame`) and
+    returns it at full resolution where its shimmer against the burst's first frame is
+    still to be measured (:func:`shimmer_check`), else None: one decoding for both."""
+    frames = frames_at(session, position)
+    newest = frames[-1]
+    due = len(frames) > 1 and (frames[0].sha256, newest.sha256) not in _MEASURED
+    if not due or newest.sha256 in _CHECK_FRAMES:
+        check_frame(session, newest)
+        return None
+    checked, full = _decode_for_checks(session, newest)
+    _kept(_CHECK_FRAMES, newest.sha256, lambda: checked)
+    return full
 
 
 def check_image(session: Session, frame: Frame) -> tuple[np.ndarray, float]:
@@ -454,7 +472,8 @@ def _round_range(z: float) -> str:
     return f"{float(f'{z:.2g}'):g}" if z >= 100 else f"{z:.0f}"
 
 
-def shimmer_check(session: Session, position: str) -> Finding | None:
+def shimmer_check(session: Session, position: str, newest: np.ndarray | None = None
+                  ) -> Finding | None:
     """Heat shimmer measured at full resolution between the first frame of
     ``position``'s burst and each later one (:mod:`rigkit.pipeline.shimmer`), their
     median, and the burst length that median calls for to keep the offset within 0.3 %
@@ -462,15 +481,17 @@ def shimmer_check(session: Session, position: str) -> Finding | None:
     (:func:`rigkit.rig.bursts.burst_advice`). One pair's figure moves with the air from
     frame to frame (advice of 4, 5 and 6 frames for one capture); the median settles as
     the burst grows, and the range of the pairs is shown with it. None for a single
-    frame. Always ok: shimmer is the air's fault, not the frame's."""
+    frame. Always ok: shimmer is the air's fault, not the frame's. ``newest``: the
+    newest frame as :func:`full_image` gives it, where already decoded."""
     frames = frames_at(session, position)
     if len(frames) < 2:
         return None
     measured: list[Shimmer] = []
     failure = ""
     for number, frame in enumerate(frames[1:], 2):
+        given = newest if number == len(frames) else None
         try:
-            measured.append(_pair_shimmer(session, frames[0], frame, number))
+            measured.append(_pair_shimmer(session, frames[0], frame, number, given))
         except RigkitError as exc:
             failure = str(exc)
     if not measured:
@@ -495,12 +516,23 @@ _MEASURED: dict[tuple[str, str], Shimmer] = {}
 measured against the first once, not again for every frame after it."""
 
 
-def _pair_shimmer(session: Session, first: Frame, other: Frame, number: int) -> Shimmer:
+_STARTS: dict[str, ShimmerStart] = {}
+"""Bursts' first frames prepared for measuring the shimmer (:func:`shimmer_start`), by
+SHA-256: decoded once for all the burst's later frames."""
+
+
+def _pair_shimmer(session: Session, first: Frame, other: Frame, number: int,
+                  image: np.ndarray | None = None) -> Shimmer:
+    """:func:`rigkit.pipeline.shimmer.measure_shimmer` between a burst's ``first`` frame
+    and its ``number``-th, ``other`` (``image``: it as :func:`full_image` gives it,
+    where already decoded)."""
     key = (first.sha256, other.sha256)
     if key not in _MEASURED:
         where = f"{other.position} frames 1 and {number}"
-        _MEASURED[key] = measure_shimmer(full_image(session, first),
-                                         full_image(session, other), where)
+        start = _kept(_STARTS, first.sha256,
+                      lambda: shimmer_start(full_image(session, first), where))
+        image = full_image(session, other) if image is None else image
+        _MEASURED[key] = shimmer_from(start, image, where)
     return _MEASURED[key]
 
 
@@ -526,16 +558,17 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
     newest = {p: frames_at(session, p)[-1] for p in POSITIONS if frames_at(session, p)}
     compared = position != "left" and "left" in newest
     with ViewPool() as pool:
-        frames = {p: pool.submit(check_frame, session, newest[p])
-                  for p in ([position, "left"] if compared else [position])}
-        frames[position].result()
+        shown = pool.submit(_newest_for_checks, session, position)
+        left = pool.submit(check_frame, session, newest["left"]) if compared else None
+        full = shown.result()
         checks = [exif_check(session, position), exposure_check(session, newest[position])]
-        shimmer = shimmer_check(session, position)
+        shimmer = shimmer_check(session, position, full)
+        del full
         if shimmer is not None:
             checks.append(shimmer)
-        if not compared:
+        if left is None:
             return checks
-        frames["left"].result()
+        left.result()
         reference(session, newest["left"], pool)
         mapped = [position] + (["right"] if position == "back" and "right" in newest else [])
         views = {p: pool.submit(view_map, session, p, newest["left"], newest[p])
