@@ -205,16 +205,18 @@ def full_image(session: Session, frame: Frame) -> np.ndarray:
 K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 _KEPT = 6
-"""Frames (and left frames prepared, and view maps) the checks keep in memory, the
-newest: a capture's left, right and back frames and a burst's first and newest frame.
-A check image is 3 MB; a prepared left frame 6 MB."""
+"""Frames (and left frames prepared, and view maps) the checks keep in memory, those
+used last: the left frame the others are mapped onto, a burst's first frame and its
+newest, the frames of the other positions. A check image is 3 MB; a prepared left
+frame 6 MB."""
 _lock = threading.Lock()
 
 
 def _kept(cache: dict[K, V], key: K, compute: Callable[[], V]) -> V:
-    """``cache[key]``, computed first where missing; only the ``_KEPT`` newest stay."""
+    """``cache[key]``, computed first where missing; only the ``_KEPT`` used last stay."""
     with _lock:
         if key in cache:
+            cache[key] = cache.pop(key)  # used last
             return cache[key]
     value = compute()
     with _lock:
