@@ -33,10 +33,11 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Sequence
-from concurrent.futures import Future
+import threading
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -58,7 +59,8 @@ from rigkit.pipeline.checks import (
 )
 from rigkit.pipeline.features import Reference, match_to, prepare_left
 from rigkit.pipeline.rectify import pseudo_rectify
-from rigkit.pipeline.shimmer import Shimmer, measure_shimmer
+from rigkit.pipeline.settings import PipelineSettings
+from rigkit.pipeline.shimmer import Shimmer, ShimmerStart, shimmer_from, shimmer_start
 from rigkit.rig.bursts import burst_advice
 from rigkit.rig.findings import Finding
 from rigkit.rig.profile import RigProfile
@@ -75,6 +77,18 @@ MAX_BLOWN = 0.01
 highlights count as blown and the frame should be taken again."""
 RANGE_FACTOR = 2.0
 """An implied range more than this factor from the profile's nominal range is suspect."""
+
+
+@dataclass(frozen=True)
+class CheckFrame:
+    """A frame as the on-site checks take it: ``image``, (h, w) float32 grey in [0, 255]
+    (read-only), its longest side at most ``CHECK_SIDE_PX``; ``reduction``,
+    full-resolution px per check px (>= 1); ``clipped``, the share of the
+    full-resolution frame's pixels at or above :data:`CLIP_LEVEL`."""
+
+    image: np.ndarray
+    reduction: float
+    clipped: float
 
 
 @dataclass(frozen=True)
@@ -116,9 +130,10 @@ def burst_misfit(session: Session, position: str, path: Path) -> str | None:
     try:
         cache = session.path / DERIVED_DIR
         grey = load_linear_grey(path, cache, file_sha256(path), session.rig().image_size)
-        new = _reduced(to_pipeline([grey], linear=is_raw(path))[0])[0]
-        first, reduction = check_image(session, frames[0])
-        view = map_views(first, new, reduction, session.rig().focal_px)
+        new = _reduced(to_pipeline([grey], linear=is_raw(path), overwrite=True)[0])[0]
+        first = check_frame(session, frames[0])
+        view = map_views(first.image, new, first.reduction, session.rig().focal_px,
+                         reference(session, frames[0]))
     except RigkitError:
         return None
     moved = view.parallax is not None and view.parallax.moved
@@ -181,19 +196,104 @@ def decoded(session: Session, frame: Frame) -> np.ndarray:
     return load_linear_grey(session.path / frame.file, session.path / DERIVED_DIR, frame.sha256)
 
 
-def full_image(session: Session, frame: Frame, grey: np.ndarray | None = None) -> np.ndarray:
-    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey;
-    ``grey``: the frame as :func:`decoded` gives it, where already read."""
-    grey = decoded(session, frame) if grey is None else grey
-    return to_pipeline([grey], linear=is_raw(session.path / frame.file))[0]
+def full_image(session: Session, frame: Frame) -> np.ndarray:
+    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey."""
+    grey = decoded(session, frame)
+    return to_pipeline([grey], linear=is_raw(session.path / frame.file), overwrite=True)[0]
 
 
-def check_image(session: Session, frame: Frame, side_px: int = CHECK_SIDE_PX,
-                grey: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """A frame as (h, w) float32 grey in [0, 255], its longest side at most ``side_px``,
-    and the reduction factor (full-resolution px per check px, >= 1); ``grey`` as for
-    :func:`full_image`."""
-    return _reduced(full_image(session, frame, grey), side_px)
+K = TypeVar("K", bound=Hashable)
+V = TypeVar("V")
+_KEPT = 6
+"""Frames (and left frames prepared, and view maps) the checks keep in memory, those
+used last: the left frame the others are mapped onto, a burst's first frame and its
+newest, the frames of the other positions. A check image is 3 MB; a prepared left
+frame 6 MB."""
+_lock = threading.Lock()
+
+
+def _kept(cache: dict[K, V], key: K, compute: Callable[[], V]) -> V:
+    """``cache[key]``, computed first where missing; only the ``_KEPT`` used last stay."""
+    with _lock:
+        if key in cache:
+            cache[key] = cache.pop(key)  # used last
+            return cache[key]
+    value = compute()
+    with _lock:
+        cache[key] = value
+        while len(cache) > _KEPT:
+            del cache[next(iter(cache))]
+    return value
+
+
+_CHECK_FRAMES: dict[str, CheckFrame] = {}
+"""Frames decoded and reduced for the checks, by their SHA-256: a frame is decoded once
+for all its checks (its own, the later positions' against it, the preview)."""
+_REFERENCES: dict[str, Reference] = {}
+"""Left check images prepared for matching (:func:`prepare_left`), by SHA-256."""
+_VIEWS: dict[tuple[str, str, float | None], ViewMap] = {}
+"""View maps (:func:`map_views`) by the left and the other frame's SHA-256 and the focal
+length that asks for the parallax."""
+
+
+def check_frame(session: Session, frame: Frame) -> CheckFrame:
+    """The :class:`CheckFrame` of ``frame``, decoded the first time only."""
+    return _kept(_CHECK_FRAMES, frame.sha256, lambda: _decode_for_checks(session, frame)[0])
+
+
+def _decode_for_checks(session: Session, frame: Frame) -> tuple[CheckFrame, np.ndarray]:
+    """``frame`` decoded: its :class:`CheckFrame`, and the frame at full resolution as
+    :func:`full_image` gives it."""
+    grey = decoded(session, frame)
+    clipped = np.count_nonzero(grey >= CLIP_LEVEL) / grey.size
+    linear = is_raw(session.path / frame.file)
+    full = to_pipeline([grey], linear=linear, overwrite=True)[0]
+    image, reduction = _reduced(full)
+    image.flags.writeable = False
+    return CheckFrame(image, reduction, clipped), full
+
+
+def _newest_for_checks(session: Session, position: str) -> np.ndarray | None:
+    """Decodes ``position``'s newest frame for its checks (:func:`check_frame`) and
+    returns it at full resolution where its shimmer against the burst's first frame is
+    still to be measured (:func:`shimmer_check`), else None: one decoding for both."""
+    frames = frames_at(session, position)
+    newest = frames[-1]
+    due = len(frames) > 1 and (frames[0].sha256, newest.sha256) not in _MEASURED
+    if not due or newest.sha256 in _CHECK_FRAMES:
+        check_frame(session, newest)
+        return None
+    checked, full = _decode_for_checks(session, newest)
+    _kept(_CHECK_FRAMES, newest.sha256, lambda: checked)
+    return full
+
+
+def check_image(session: Session, frame: Frame) -> tuple[np.ndarray, float]:
+    """A frame as (h, w) float32 grey in [0, 255] (read-only), its longest side at most
+    ``CHECK_SIDE_PX``, and the reduction factor (full-resolution px per check px, >= 1)."""
+    checked = check_frame(session, frame)
+    return checked.image, checked.reduction
+
+
+def reference(session: Session, left: Frame, pool: ViewPool | None = None) -> Reference:
+    """The left ``frame``'s check image prepared for matching (:func:`prepare_left`, in
+    ``pool``'s threads where given), the first time only."""
+    image = check_frame(session, left).image
+    return _kept(_REFERENCES, left.sha256,
+                 lambda: prepare_left(image, MATCH_POINTS, CHECK_MATCHING, pool))
+
+
+def view_map(session: Session, position: str, left: Frame, frame: Frame) -> ViewMap:
+    """How ``position``'s ``frame`` maps onto the ``left`` frame (:func:`map_views`, with
+    the parallax for a right frame), the first time only."""
+    focal = session.rig().focal_px if position == "right" else None
+
+    def compute() -> ViewMap:
+        first = check_frame(session, left)
+        other = check_frame(session, frame).image
+        return map_views(first.image, other, first.reduction, focal, reference(session, left))
+
+    return _kept(_VIEWS, (left.sha256, frame.sha256, focal), compute)
 
 
 def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarray, float]:
@@ -207,6 +307,11 @@ def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarra
 
 MATCH_POINTS = 1500
 """Corners of the left check image tracked into the other view."""
+CHECK_MATCHING = PipelineSettings(coarse_side_px=640)
+"""How the checks match views: SIFT's coarse alignment on a 640-px copy of the check
+images, which only starts the tracking of the corners at the check images' resolution
+(what the checks measure on). On a full-resolution frame 0.4 s of CPU less per view
+than at their 1024 px, and 700-1200 features agreeing on the alignment (12 needed)."""
 
 
 def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0,
@@ -218,8 +323,8 @@ def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0,
     turned leaves none). ``ref``: ``left`` prepared for matching with ``MATCH_POINTS``
     corners, where already done (:func:`rigkit.pipeline.features.prepare_left`).
     PipelineError if they do not match."""
-    ref = ref or prepare_left(left, MATCH_POINTS)
-    matches = match_to(ref, other, "left/other")
+    ref = ref or prepare_left(left, MATCH_POINTS, CHECK_MATCHING)
+    matches = match_to(ref, other, "left/other", CHECK_MATCHING)
     a, b = matches.left.astype(np.float32), matches.other.astype(np.float32)
     similarity, _ = cv2.estimateAffinePartial2D(a, b, method=cv2.LMEDS)
     if similarity is None:
@@ -284,13 +389,10 @@ def exif_check(session: Session, position: str) -> Finding:
     return Finding("exif", f"EXIF agrees with the other frames and the profile{note}", ok=True)
 
 
-def exposure_check(session: Session, frame: Frame, grey: np.ndarray | None = None
-                   ) -> Finding:
+def exposure_check(session: Session, frame: Frame) -> Finding:
     """Clipped highlights: where the sensor saturated there is no texture to match, and
-    a frame too bright for one position is so for all (they must share the exposure).
-    ``grey``: the frame as :func:`decoded` gives it, where already read."""
-    grey = decoded(session, frame) if grey is None else grey
-    clipped = float(np.mean(grey >= CLIP_LEVEL))
+    a frame too bright for one position is so for all (they must share the exposure)."""
+    clipped = check_frame(session, frame).clipped
     if clipped <= MAX_BLOWN:
         return Finding("exposure", f"highlights: {100 * clipped:.2f} % clipped", ok=True)
     return Finding(
@@ -372,7 +474,8 @@ def _round_range(z: float) -> str:
     return f"{float(f'{z:.2g}'):g}" if z >= 100 else f"{z:.0f}"
 
 
-def shimmer_check(session: Session, position: str) -> Finding | None:
+def shimmer_check(session: Session, position: str, newest: np.ndarray | None = None
+                  ) -> Finding | None:
     """Heat shimmer measured at full resolution between the first frame of
     ``position``'s burst and each later one (:mod:`rigkit.pipeline.shimmer`), their
     median, and the burst length that median calls for to keep the offset within 0.3 %
@@ -380,15 +483,17 @@ def shimmer_check(session: Session, position: str) -> Finding | None:
     (:func:`rigkit.rig.bursts.burst_advice`). One pair's figure moves with the air from
     frame to frame (advice of 4, 5 and 6 frames for one capture); the median settles as
     the burst grows, and the range of the pairs is shown with it. None for a single
-    frame. Always ok: shimmer is the air's fault, not the frame's."""
+    frame. Always ok: shimmer is the air's fault, not the frame's. ``newest``: the
+    newest frame as :func:`full_image` gives it, where already decoded."""
     frames = frames_at(session, position)
     if len(frames) < 2:
         return None
     measured: list[Shimmer] = []
     failure = ""
     for number, frame in enumerate(frames[1:], 2):
+        given = newest if number == len(frames) else None
         try:
-            measured.append(_pair_shimmer(session, frames[0], frame, number))
+            measured.append(_pair_shimmer(session, frames[0], frame, number, given))
         except RigkitError as exc:
             failure = str(exc)
     if not measured:
@@ -413,12 +518,23 @@ _MEASURED: dict[tuple[str, str], Shimmer] = {}
 measured against the first once, not again for every frame after it."""
 
 
-def _pair_shimmer(session: Session, first: Frame, other: Frame, number: int) -> Shimmer:
+_STARTS: dict[str, ShimmerStart] = {}
+"""Bursts' first frames prepared for measuring the shimmer (:func:`shimmer_start`), by
+SHA-256: decoded once for all the burst's later frames."""
+
+
+def _pair_shimmer(session: Session, first: Frame, other: Frame, number: int,
+                  image: np.ndarray | None = None) -> Shimmer:
+    """:func:`rigkit.pipeline.shimmer.measure_shimmer` between a burst's ``first`` frame
+    and its ``number``-th, ``other`` (``image``: it as :func:`full_image` gives it,
+    where already decoded)."""
     key = (first.sha256, other.sha256)
     if key not in _MEASURED:
         where = f"{other.position} frames 1 and {number}"
-        _MEASURED[key] = measure_shimmer(full_image(session, first),
-                                         full_image(session, other), where)
+        start = _kept(_STARTS, first.sha256,
+                      lambda: shimmer_start(full_image(session, first), where))
+        image = full_image(session, other) if image is None else image
+        _MEASURED[key] = shimmer_from(start, image, where)
     return _MEASURED[key]
 
 
@@ -435,28 +551,30 @@ def _median_shimmer(measured: Sequence[Shimmer]) -> Shimmer:
 
 
 def onsite_checks(session: Session, position: str) -> list[Finding]:
-    """Every check for the newest frame of ``position`` (which must have one). The
-    frames it needs (this, the left and, for a back frame, the right one: its roles
-    check) are decoded once each, side by side, and matched to the left one prepared
-    once; a failure shows where the checks in turn need that frame, not before."""
+    """Every check for the newest frame of ``position`` (which must have one). Each frame
+    is decoded once (:func:`check_frame`), the left one prepared for matching once and
+    each view mapped onto it once, for all the checks that need them, these and later
+    ones (the back frame's roles check takes the right frame's map); what is not known
+    yet is found side by side. A failure shows where the checks in turn need that frame,
+    not before."""
     newest = {p: frames_at(session, p)[-1] for p in POSITIONS if frames_at(session, p)}
     compared = position != "left" and "left" in newest
-    wanted = [position]
-    if compared:
-        wanted += ["left"] + (["right"] if position == "back" and "right" in newest else [])
     with ViewPool() as pool:
-        greys = {p: pool.submit(decoded, session, newest[p]) for p in wanted}
-        checks = [exif_check(session, position),
-                  exposure_check(session, newest[position], greys[position].result())]
-        shimmer = shimmer_check(session, position)
+        shown = pool.submit(_newest_for_checks, session, position)
+        left = pool.submit(check_frame, session, newest["left"]) if compared else None
+        full = shown.result()
+        checks = [exif_check(session, position), exposure_check(session, newest[position])]
+        shimmer = shimmer_check(session, position, full)
+        del full
         if shimmer is not None:
             checks.append(shimmer)
-        if not compared:
+        if left is None:
             return checks
-        left, reduction = check_image(session, newest["left"], grey=greys["left"].result())
-        ref = prepare_left(left, MATCH_POINTS, pool=pool)
-        views = {p: pool.submit(_view_from, session, p, newest[p], greys[p], left, reduction, ref)
-                 for p in wanted if p != "left"}
+        left.result()
+        reference(session, newest["left"], pool)
+        mapped = [position] + (["right"] if position == "back" and "right" in newest else [])
+        views = {p: pool.submit(view_map, session, p, newest["left"], newest[p])
+                 for p in mapped}
         try:
             view = views[position].result()
         except RigkitError as exc:
@@ -471,19 +589,10 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
         return [*checks, *back]
 
 
-def _view_from(session: Session, position: str, frame: Frame, grey: Future[np.ndarray],
-               left: np.ndarray, reduction: float, ref: Reference) -> ViewMap:
-    """:func:`view_of`, the frame's decoding (``grey``) and ``left``'s ``ref`` under way."""
-    other, _ = check_image(session, frame, grey=grey.result())
-    focal = session.rig().focal_px if position == "right" else None
-    return map_views(left, other, reduction, focal, ref)
-
-
-def view_of(session: Session, position: str, left: np.ndarray, reduction: float) -> ViewMap:
-    """How ``position``'s newest frame maps onto the left check image ``left``."""
-    other, _ = check_image(session, frames_at(session, position)[-1])
-    focal = session.rig().focal_px if position == "right" else None
-    return map_views(left, other, reduction, focal)
+def view_of(session: Session, position: str) -> ViewMap:
+    """How ``position``'s newest frame maps onto the left one's (:func:`view_map`)."""
+    return view_map(session, position, frames_at(session, "left")[-1],
+                    frames_at(session, position)[-1])
 
 
 def _roles_check(right: ViewMap, back: ViewMap, baseline_lb_m: float) -> list[Finding]:

@@ -9,7 +9,7 @@ import statistics
 from collections.abc import Sequence
 from datetime import UTC, datetime
 
-from rigkit.capture.field import check_image, frames_at, view_of
+from rigkit.capture.field import frames_at, view_of
 from rigkit.capture.session import LaserReading, Session
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import implied_range_m
@@ -46,8 +46,7 @@ def implied_range(session: Session) -> float | None:
     if not (frames_at(session, "left") and frames_at(session, "back")):
         return None
     try:
-        left, reduction = check_image(session, frames_at(session, "left")[-1])
-        view = view_of(session, "back", left, reduction)
+        view = view_of(session, "back")
     except RigkitError:
         return None
     z = implied_range_m(view.scale, session.rig().baseline_lb.value_m)

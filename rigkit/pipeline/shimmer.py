@@ -64,20 +64,50 @@ class Shimmer:
                 "points": self.points}
 
 
+@dataclass(frozen=True)
+class ShimmerStart:
+    """The first of two frames as :func:`measure_shimmer` takes it, the same against
+    every other frame of its burst: ``shape`` (H, W) of the frame, ``where`` its most
+    textured crop (rows, columns), ``crop`` that crop as (h, w) uint8, ``points``
+    (N, 1, 2) float32 the corners of the crop that are tracked, crop px."""
+
+    shape: tuple[int, ...]
+    where: tuple[slice, slice]
+    crop: np.ndarray
+    points: np.ndarray
+
+
 @deterministic
 def measure_shimmer(first: np.ndarray, other: np.ndarray, what: str = "burst") -> Shimmer:
     """:class:`Shimmer` from two (H, W) float32 grey frames of one camera position at
     full resolution (``what`` names them in errors). Raises PipelineError where the
     frames have too little texture to track or do not show the same view."""
-    if first.shape != other.shape:
-        raise PipelineError(f"{what}: frames of different sizes")
+    return shimmer_from(shimmer_start(first, what), other, what)
+
+
+def shimmer_start(first: np.ndarray, what: str = "burst") -> ShimmerStart:
+    """The (H, W) float32 ``first`` frame prepared for :func:`shimmer_from`; PipelineError
+    where it has too little texture to track."""
     where = textured_crop(first, CROP_PX)
-    a, b = _crop(first, where), _crop(other, where)
-    start, moved = _tracks(a, b, what)
-    points, residual = _less_global_map(start, moved, what)
+    a = _crop(first, where)
+    spacing = max(4.0, 0.7 * math.sqrt(a.size / MAX_POINTS))
+    found = cv2.goodFeaturesToTrack(a, MAX_POINTS, 0.005, spacing, blockSize=5)
+    if found is None or len(found) < MIN_POINTS:
+        raise PipelineError(f"{what}: too little texture to measure heat shimmer")
+    return ShimmerStart(first.shape, where, a, found.reshape(-1, 1, 2).astype(np.float32))
+
+
+@deterministic
+def shimmer_from(start: ShimmerStart, other: np.ndarray, what: str = "burst") -> Shimmer:
+    """:func:`measure_shimmer` from its first frame's ``start`` and the (H, W) float32
+    ``other`` frame."""
+    if start.shape != other.shape:
+        raise PipelineError(f"{what}: frames of different sizes")
+    begin, moved = _tracks(start, _crop(other, start.where), what)
+    points, residual = _less_global_map(begin, moved, what)
     distance, gamma = pdist(points), 0.25 * pdist(residual, "sqeuclidean")
     # (1/4 of the squared distance: half the mean over the two axes)
-    return _fit(distance, gamma, len(points), max_distance=min(a.shape) / 3)
+    return _fit(distance, gamma, len(points), max_distance=min(start.crop.shape) / 3)
 
 
 def burst_shimmer(
@@ -99,13 +129,10 @@ def _crop(image: np.ndarray, where: tuple[slice, slice]) -> np.ndarray:
     return np.clip(np.rint(image[where]), 0, 255).astype(np.uint8)
 
 
-def _tracks(a: np.ndarray, b: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """(N, 2) float64 points of ``a`` and where they are in ``b``, checked both ways."""
-    spacing = max(4.0, 0.7 * math.sqrt(a.size / MAX_POINTS))
-    found = cv2.goodFeaturesToTrack(a, MAX_POINTS, 0.005, spacing, blockSize=5)
-    if found is None or len(found) < MIN_POINTS:
-        raise PipelineError(f"{what}: too little texture to measure heat shimmer")
-    p0 = found.reshape(-1, 1, 2).astype(np.float32)
+def _tracks(start: ShimmerStart, b: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 2) float64 points of the first frame's crop (``start``) and where they are in
+    ``b``, the other frame's, checked both ways."""
+    a, p0 = start.crop, start.points
     dx, dy = frame_shift(a.astype(np.float32), b.astype(np.float32))
     p1, st1 = _follow(a, b, p0, p0 + np.array([dx, dy], np.float32))
     back, st2 = _follow(b, a, p1, p0.copy())

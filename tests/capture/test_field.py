@@ -316,3 +316,24 @@ def test_back_magnification_gives_the_range_of_a_rendered_scene() -> None:
     true_z = float(np.nanmedian(depth))
     assert implied_range_m(view.scale, 2.0) == pytest.approx(true_z, rel=0.1)
     assert not _failed(back_checks(view, load_rig(SYNTHETIC)))
+
+
+def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """The left, right and back frames checked in turn, as ``rigkit field`` takes them
+    (the checks, the check image beside them, the back frame's roles check against the
+    right one): each file decoded once."""
+    from rigkit.capture import field
+
+    read: list[str] = []
+    decoded = field.decoded
+    monkeypatch.setattr(field, "decoded", lambda s, f: read.append(f.file) or decoded(s, f))
+    left = texture(seed=11)
+    frames = {"left": left, "right": similarity(left, 1.0, 0.4, (6.0, 1.0)),
+              "back": similarity(left, 0.99, -0.3, (2.0, -3.0))}
+    session = new_session(tmp_path)
+    for position, image in frames.items():
+        session = add_position_frame(session, position, _png(tmp_path / f"{position}.png", image))
+        onsite_checks(session, position)
+        field.check_image(session, frames_at(session, position)[-1])
+    assert read == ["raw/left.png", "raw/right.png", "raw/back.png"]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigkit.errors import InputError
-from rigkit.pipeline.burst import frame_shift, median, stack_burst, textured_crop
+from rigkit.pipeline.burst import frame_shift, median, shifted, stack_burst, textured_crop
 from rigkit.synth.shimmer import shimmer_field
 
 
@@ -84,3 +84,17 @@ def test_shift_leaves_whole_frame_crops_unchanged() -> None:
     kept = img.copy()
     frame_shift(img, img.copy())
     assert np.array_equal(img, kept)
+
+
+@pytest.mark.parametrize(("dx", "dy"), [(0.0, 0.0), (0.37, -0.81), (-3.5, 12.25),
+                                        (40.03125, -49.5), (1.0, -2.0)])
+def test_shifted_is_opencvs_cubic_warp(dx: float, dy: float) -> None:
+    """The separable shift is ``cv2.warpAffine``'s INTER_CUBIC translation with
+    replicated edges, within 1e-4 of the image's range (OpenCV rounds the coordinates
+    it samples at)."""
+    img = _texture(np.random.default_rng(7))
+    warp = np.array([[1.0, 0.0, -dx], [0.0, 1.0, -dy]])
+    expected = cv2.warpAffine(img, warp, (img.shape[1], img.shape[0]), flags=cv2.INTER_CUBIC,
+                              borderMode=cv2.BORDER_REPLICATE)
+    span = float(img.max() - img.min())
+    np.testing.assert_allclose(shifted(img, dx, dy), expected, rtol=0, atol=1e-4 * span)
