@@ -47,7 +47,7 @@ from rigkit.geometry import rotvec_to_matrix
 from rigkit.pipeline.checks import affine_scale, check_magnification
 from rigkit.pipeline.depth import rectified_rays, triangulate_z
 from rigkit.pipeline.features import Matches
-from rigkit.pipeline.rectify import Rectification, apply_homography, scaling
+from rigkit.pipeline.rectify import Rectification, apply_homography, plane_slopes, scaling
 from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
 
@@ -315,16 +315,13 @@ def residual_shear_sq(px: np.ndarray, residuals: np.ndarray) -> float:
     the two shears (A_xx - A_yy) / 2 and (A_xy + A_yx) / 2; their squares summed, less
     what the residuals' scatter gives them (0 where that is all). A rotation and a
     magnification of the view, which a camera's pose and the offset absorb, have none."""
-    X = np.c_[px - px.mean(axis=0), np.ones(len(px))]
     try:
-        coef, *_ = np.linalg.lstsq(X, residuals, rcond=None)  # (3, 2): rows x, y, 1
-        inv = np.linalg.inv(X.T @ X)
+        slopes, variance = plane_slopes(px, residuals)  # (2, 2): [position, component]
     except np.linalg.LinAlgError:
         return 0.0
-    scatter = np.mean((residuals - X @ coef) ** 2, axis=0)  # (2,): u, v
-    A = coef[:2].T  # A[i, j]: d(residual i) / d(position j)
+    A = slopes.T  # A[i, j]: d(residual i) / d(position j)
     shears = (A[0, 0] - A[1, 1]) / 2, (A[0, 1] + A[1, 0]) / 2
-    noise = (scatter[0] + scatter[1]) * (inv[0, 0] + inv[1, 1]) / 4  # both shears' share
+    noise = float(variance.sum()) / 4  # each shear is half a sum of two slopes
     return max(shears[0] ** 2 + shears[1] ** 2 - noise, 0.0)
 
 

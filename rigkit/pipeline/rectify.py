@@ -171,13 +171,22 @@ def row_stretch_sq(left_px: np.ndarray, rows: np.ndarray) -> float:
     """The squared slope, down the image, of the row residuals ``rows`` (N,) px of
     rectified matches at left pixels ``left_px`` (N, 2), less the part the residuals'
     scatter gives it (0 where that is all): a plane fitted by least squares."""
-    X = np.c_[left_px - left_px.mean(axis=0), np.ones(len(rows))]
     try:
-        coef, *_ = np.linalg.lstsq(X, rows, rcond=None)
-        scatter = float(np.mean((rows - X @ coef) ** 2)) * np.linalg.inv(X.T @ X)[1, 1]
+        slope, variance = plane_slopes(left_px, rows)
     except np.linalg.LinAlgError:
         return 0.0
-    return max(float(coef[1]) ** 2 - scatter, 0.0)
+    return max(float(slope[1]) ** 2 - float(variance[1]), 0.0)
+
+
+def plane_slopes(px: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A plane fitted by least squares to ``values`` (N,) or (N, k) at pixels ``px``
+    (N, 2): its slopes along x and y, (2,) or (2, k) (values per px), and the variance
+    each has from the fit's scatter alone, the same shape. LinAlgError where the
+    pixels span no plane."""
+    X = np.c_[px - px.mean(axis=0), np.ones(len(px))]
+    coef, *_ = np.linalg.lstsq(X, values, rcond=None)
+    scatter = np.mean((values - X @ coef) ** 2, axis=0)  # () or (k,)
+    return coef[:2], np.multiply.outer(np.diag(np.linalg.inv(X.T @ X))[:2], scatter)
 
 
 def warp_pair(
