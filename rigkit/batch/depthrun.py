@@ -29,6 +29,7 @@ import numpy as np
 from rigkit.capture.checks import capture_warnings
 from rigkit.capture.frames import FrameFile, load_capture
 from rigkit.capture.session import POSITIONS
+from rigkit.core.lazy import preload
 from rigkit.pipeline import DepthResult, estimate_depth
 from rigkit.pipeline.shimmer import Shimmer
 from rigkit.rig.bursts import burst_warning
@@ -108,6 +109,8 @@ def run_depth(
     hash; ``force`` runs despite a fatal EXIF finding. RigkitError (one line) for a
     capture that cannot give a trustworthy depth map."""
     report = progress or (lambda stage, fraction: None)
+    # The pipeline's fits need SciPy's optimisers: imported while the frames decode.
+    preload("scipy.optimize")
     firsts = {pos: bursts[pos][0].path for pos in POSITIONS if bursts.get(pos)}
     if isinstance(rig, RigProfile):  # EXIF first: a wrong zoom stops before decoding
         warnings = capture_warnings(rig, firsts, force)

@@ -1,19 +1,29 @@
 """Exporting depth maps for other tools: point clouds (PLY; LAS and LAZ for GIS) and a
 float32 TIFF raster, in the left camera's frame or georeferenced in the tripod's UTM
 zone from the tripod's position and the laser's directions to the targets
-(docs/outputs.md)."""
+(docs/outputs.md).
 
-from rigkit.export.georef import Georeference, Orientation, georeference, orient_camera
-from rigkit.export.run import (
-    DEFAULT_FORMATS,
-    EXPORT_DIR,
-    FORMATS,
-    Exported,
-    export_depth,
-    export_path,
-    parse_formats,
-)
-from rigkit.export.source import DepthMap, open_depth
+Its public names are imported on first use (:mod:`rigkit.core.lazy`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rigkit.core.lazy import exports
+
+if TYPE_CHECKING:
+    from rigkit.export.georef import Georeference, Orientation, georeference, orient_camera
+    from rigkit.export.run import (
+        DEFAULT_FORMATS,
+        EXPORT_DIR,
+        FORMATS,
+        Exported,
+        export_depth,
+        export_path,
+        parse_formats,
+    )
+    from rigkit.export.source import DepthMap, open_depth
 
 __all__ = [
     "DEFAULT_FORMATS",
@@ -30,3 +40,19 @@ __all__ = [
     "orient_camera",
     "parse_formats",
 ]
+
+__getattr__ = exports(__name__, {
+    "DEFAULT_FORMATS": "run",
+    "DepthMap": "source",
+    "EXPORT_DIR": "run",
+    "Exported": "run",
+    "FORMATS": "run",
+    "Georeference": "georef",
+    "Orientation": "georef",
+    "export_depth": "run",
+    "export_path": "run",
+    "georeference": "georef",
+    "open_depth": "source",
+    "orient_camera": "georef",
+    "parse_formats": "run",
+})

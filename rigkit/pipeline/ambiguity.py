@@ -40,8 +40,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
+from rigkit.core.lazy import function
 from rigkit.errors import PipelineError
 from rigkit.geometry import rotvec_to_matrix
 from rigkit.pipeline.checks import affine_scale, check_magnification
@@ -50,6 +50,8 @@ from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, apply_homography, plane_slopes, scaling
 from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
+
+least_squares = function("scipy.optimize", "least_squares")
 
 MIN_MATCHES = 30
 MAX_BACK_SIDE = 0.5  # back camera's sideways offset, as a fraction of C_lr, still plausible

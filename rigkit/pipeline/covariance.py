@@ -5,7 +5,10 @@ and a test of whether a fitted change is more than its covariance explains."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import chdtri
+
+from rigkit.core.lazy import function
+
+chdtri = function("scipy.special", "chdtri")
 
 
 def significant_change(change: np.ndarray, cov: np.ndarray, confidence: float) -> bool:

@@ -44,8 +44,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
+from rigkit.core.lazy import function
 from rigkit.geometry import Distortion, distort
 from rigkit.pipeline.ambiguity import back_view_start, shift_sensitivity, spatial_blocks
 from rigkit.pipeline.bundle import (
@@ -62,6 +62,8 @@ from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.rectify import Rectification, pseudo_rectify
 from rigkit.pipeline.rig import CENTRED, RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
+
+least_squares = function("scipy.optimize", "least_squares")
 
 MIN_TRACKS = 50
 MAX_TRACKS = 1500  # enough for two global terms; the cost grows with the tracks

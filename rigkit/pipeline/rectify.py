@@ -25,13 +25,15 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
+from rigkit.core.lazy import function
 from rigkit.errors import PipelineError
 from rigkit.geometry import intrinsics, rot_z, rotvec_to_matrix
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens, smooth_map
 from rigkit.pipeline.settings import PipelineSettings
+
+least_squares = function("scipy.optimize", "least_squares")
 
 ROLL_PRIOR_RAD = np.radians(2.0)
 DEFAULT = PipelineSettings()

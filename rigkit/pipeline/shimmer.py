@@ -28,12 +28,14 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.distance import pdist
 
+from rigkit.core.lazy import function
 from rigkit.core.threads import deterministic
 from rigkit.errors import PipelineError
 from rigkit.pipeline.burst import frame_shift, textured_crop
+
+least_squares = function("scipy.optimize", "least_squares")
+pdist = function("scipy.spatial.distance", "pdist")
 
 CROP_PX = 2048  # side of the (most textured) crop measured on, full-resolution px
 MAX_POINTS = 2000  # points tracked between the frames

@@ -1,7 +1,17 @@
-"""Synthetic three-view scenes with exact ground truth (``rigkit synth``)."""
+"""Synthetic three-view scenes with exact ground truth (``rigkit synth``).
 
-from rigkit.synth.io import SceneTruth, load_scene, write_scene
-from rigkit.synth.scene import Scene, SynthParams, field_params, generate_scene
+Its public names are imported on first use (:mod:`rigkit.core.lazy`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rigkit.core.lazy import exports
+
+if TYPE_CHECKING:
+    from rigkit.synth.io import SceneTruth, load_scene, write_scene
+    from rigkit.synth.scene import Scene, SynthParams, field_params, generate_scene
 
 __all__ = [
     "Scene",
@@ -12,3 +22,13 @@ __all__ = [
     "load_scene",
     "write_scene",
 ]
+
+__getattr__ = exports(__name__, {
+    "Scene": "scene",
+    "SceneTruth": "io",
+    "SynthParams": "scene",
+    "field_params": "scene",
+    "generate_scene": "scene",
+    "load_scene": "io",
+    "write_scene": "io",
+})
