@@ -257,7 +257,10 @@ def _fit_terms(
     problem = Problem(lens, tracks, c_lr, c_lb, n_terms, 1.0 / z0, centres.given)
     p0 = initial(problem, rect, back_rotvec)
     scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
-    opts = dict(x_scale=scales, diff_step=1e-6, method="trf", bounds=bounds(p0, n_terms, c_lb))
+    # The Jacobian of the depths solved for inside (variable projection), not finite
+    # differences of a depth solve per column (Problem.jacobian)
+    opts = dict(x_scale=scales, jac=problem.jacobian, method="trf",
+                bounds=bounds(p0, n_terms, c_lb))
     fit = least_squares(problem.residuals, p0, **opts)
     fit = least_squares(problem.residuals, fit.x, loss="cauchy", f_scale=LOSS_SCALE_PX, **opts)
     fitted = problem.distortion(fit.x)
@@ -390,12 +393,18 @@ def _fit_centres_once(
         robust = np.sign(r) * np.sqrt(np.log1p(r * r)) * LOSS_SCALE_PX
         return np.concatenate([robust, q[-k:] * weight])
 
+    def jacobian(q: np.ndarray) -> np.ndarray:  # of residuals: the chain rule
+        problem.centres = centres.at(q[-k:])
+        p = np.concatenate([held, q[:-k]])
+        r = problem.solved(p) / LOSS_SCALE_PX
+        log = np.log1p(r * r)  # d robust / d r = |r| / ((1 + r^2) sqrt(log1p(r^2)))
+        slope = np.where(log > 1e-20, np.abs(r) / np.sqrt(np.maximum(log, 1e-300)), 1.0)
+        J = problem.jacobian(p, centres.basis)[:, fixed_terms:] * (slope / (1 + r * r))[:, None]
+        return np.concatenate([J, np.c_[np.zeros((k, J.shape[1] - k)), weight * np.eye(k)]])
+
     lower, upper = (b[fixed_terms:] for b in opts["bounds"])
     fit = least_squares(
-        residuals, np.concatenate([x[fixed_terms:], np.zeros(k)]), method="trf",
-        # A centre's step 1e-3 px or more (the residuals are nearly linear in it): at the
-        # outer parameters' 1e-6 it was a millionth of a px, the depths' own tolerance.
-        diff_step=np.r_[np.full(len(x) - fixed_terms, opts["diff_step"]), np.full(k, 1e-3)],
+        residuals, np.concatenate([x[fixed_terms:], np.zeros(k)]), method="trf", jac=jacobian,
         x_scale=np.concatenate([opts["x_scale"][fixed_terms:], np.full(k, 10.0)]),
         bounds=(np.concatenate([lower, np.full(k, -MAX_CENTRE_SIGMAS * prior_px)]),
                 np.concatenate([upper, np.full(k, MAX_CENTRE_SIGMAS * prior_px)])),
