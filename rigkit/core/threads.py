@@ -25,6 +25,7 @@ the process (NumPy's and SciPy's are two different OpenBLAS builds).
 from __future__ import annotations
 
 import functools
+import importlib
 import os
 import threading
 from collections.abc import Callable, Iterable, Iterator
@@ -43,17 +44,26 @@ P = ParamSpec("P")
 R = TypeVar("R")
 
 
+BLAS_CARRIERS = ("scipy.linalg",)
+"""Modules whose import loads a BLAS library of its own (SciPy's OpenBLAS, beside NumPy's),
+imported before the limits are set: the pipeline imports SciPy's optimisers when it first
+calls them (:func:`rigkit.core.lazy.function`), inside a body, and a library loaded there
+would run at its own thread count, its last bits set by the machine's cores."""
+
+
 @contextmanager
 def serial_blas() -> Iterator[None]:
     """Run the body with every BLAS library at one thread. Bodies may nest and overlap
     in several threads: each sets one thread as it starts (per-thread BLAS limits, as
     OpenMP builds have, need it), and the last to end restores the limits found by the
-    first. The libraries are those loaded when the first began: finding them takes ~1 ms
-    (every library loaded is looked at), and a pipeline run starts some 40 bodies, its
-    stages and their threads' tasks, with its libraries loaded by its imports."""
+    first. The libraries are those loaded when the first began, SciPy's among them
+    (``BLAS_CARRIERS``): finding them takes ~1 ms (every library loaded is looked at),
+    and a pipeline run starts some 40 bodies, its stages and their threads' tasks."""
     global _holders, _original, _libraries
     with _lock:
         if _holders == 0:  # the loaded libraries, found once for the bodies that overlap
+            for name in BLAS_CARRIERS:
+                importlib.import_module(name)
             _libraries = threadpoolctl.ThreadpoolController()
         limiter = _as_controller(lambda: _libraries.limit(limits=1, user_api="blas"))
         if _holders == 0:

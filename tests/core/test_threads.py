@@ -82,3 +82,31 @@ def test_a_view_pools_tasks_hold_one_blas_thread_and_come_back_in_order() -> Non
         with pytest.raises(ValueError, match="first"):  # the first error in order
             pool.map(lambda k: (_ for _ in ()).throw(ValueError(("second", "first")[k < 2])),
                      range(4))
+
+
+def test_a_blas_library_imported_inside_a_body_is_held_too() -> None:
+    """SciPy, imported when the pipeline first calls it (rigkit.core.lazy.function), is
+    imported inside the body: its OpenBLAS must run at one thread there as NumPy's does.
+    A fresh interpreter, where nothing has imported SciPy yet."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    probe = """
+import json, sys
+import numpy
+from threadpoolctl import threadpool_info
+from rigkit.core.threads import serial_blas
+assert "scipy" not in sys.modules
+with serial_blas():
+    import scipy.linalg
+    inside = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+print(json.dumps(inside))
+"""
+    # Each library at its own default, as a user's shell leaves it.
+    env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         check=True, timeout=120, env=env).stdout
+    threads = json.loads(out)
+    assert len(threads) >= 2 and set(threads) == {1}  # NumPy's and SciPy's libraries
