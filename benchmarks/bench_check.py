@@ -1,6 +1,6 @@
 """Time of the field TUI's on-site check of a frame, as the operator waits for it: the
 checks (:func:`rigkit.capture.field.onsite_checks`) and the check image shown beside
-them (:func:`rigkit.capture.field.check_image`), what ``rigkit field`` runs after each
+them (:func:`rigkit.capture.views.check_image`), what ``rigkit field`` runs after each
 frame (``FieldApp.check_position``).
 
     python benchmarks/bench_check.py [SESSION] [--work out/bench] [--runs 5] [--alone]
@@ -40,8 +40,9 @@ def check_in_turn(session_path: Path, positions: list[str]) -> dict:
     """Seconds (wall, CPU) of the imports and of each position's check, in turn, in this
     process, and each check's verdicts."""
     wall, cpu = time.perf_counter(), time.process_time()
-    from rigkit.capture.field import check_image, frames_at, onsite_checks
+    from rigkit.capture.field import frames_at, onsite_checks
     from rigkit.capture.session import load_session
+    from rigkit.capture.views import check_image
 
     out: dict = {"import": (time.perf_counter() - wall, time.process_time() - cpu)}
     session = load_session(session_path)
@@ -64,11 +65,11 @@ def burst_in_turn(rig: Path, scene: Path) -> dict:
     from rigkit.capture.field import (
         add_position_frame,
         burst_misfit,
-        check_image,
         frames_at,
         newest_failed,
         onsite_checks,
     )
+    from rigkit.capture.views import check_image
     from rigkit.synth import load_scene
 
     out: dict = {"import": (time.perf_counter() - wall, time.process_time() - cpu)}

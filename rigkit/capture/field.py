@@ -27,46 +27,47 @@ never gets this far: :func:`rigkit.capture.actions.add_frame` refuses it on arri
 
 A position holds one frame or a burst of several; :func:`frames_at` and
 :func:`add_position_frame` are how the field workflow reads and grows it.
+What the checks look at, each frame decoded once and reduced, and how another view
+maps onto the left one, is :mod:`rigkit.capture.views`.
 """
 
 from __future__ import annotations
 
 import math
 import statistics
-import threading
-from collections.abc import Callable, Hashable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TypeVar
 
-import cv2
 import numpy as np
 
 from rigkit.capture.actions import add_frame
 from rigkit.capture.checks import UNCHECKED, check_exif
-from rigkit.capture.picture import CLIP_LEVEL
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
+from rigkit.capture.views import (
+    ViewMap,
+    check_frame,
+    decoded_with_full,
+    full_image,
+    kept,
+    map_views,
+    reduced,
+    reference,
+    view_map,
+)
 from rigkit.core.files import file_sha256
 from rigkit.core.threads import ViewPool
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import (
     MAX_RIGHT_SCALE_CHANGE,
-    Parallax,
     implied_range_m,
-    measure_parallax,
     roles_problem,
 )
-from rigkit.pipeline.features import Reference, match_to, prepare_left
-from rigkit.pipeline.rectify import pseudo_rectify
-from rigkit.pipeline.settings import PipelineSettings
 from rigkit.pipeline.shimmer import Shimmer, ShimmerStart, shimmer_from, shimmer_start
 from rigkit.rig.bursts import burst_advice
 from rigkit.rig.findings import Finding
 from rigkit.rig.profile import RigProfile
 
-CHECK_SIDE_PX = 1024
-"""Longest side of the reduced images the on-site checks work on, px."""
 MAX_BURST_SCALE_CHANGE = 0.002
 """The frames of one position's burst are one view: a scale change beyond this (the
 back position's magnification is 1 - C_lb / z, 0.007 at 300 m) is another position."""
@@ -77,37 +78,6 @@ MAX_BLOWN = 0.01
 highlights count as blown and the frame should be taken again."""
 RANGE_FACTOR = 2.0
 """An implied range more than this factor from the profile's nominal range is suspect."""
-
-
-@dataclass(frozen=True)
-class CheckFrame:
-    """A frame as the on-site checks take it: ``image``, (h, w) float32 grey in [0, 255]
-    (read-only), its longest side at most ``CHECK_SIDE_PX``; ``reduction``,
-    full-resolution px per check px (>= 1); ``clipped``, the share of the
-    full-resolution frame's pixels at or above :data:`CLIP_LEVEL`."""
-
-    image: np.ndarray
-    reduction: float
-    clipped: float
-
-
-@dataclass(frozen=True)
-class ViewMap:
-    """How another view maps onto the left one, in full-resolution pixels.
-
-    ``scale`` (other / left image size of the same object) and ``roll_deg`` (the scene
-    appears turned clockwise on screen by this much in the other view, degrees, image y
-    down) are the homography's at the image centre; ``parallax``: the left/right
-    disparities' spread, as processing measures it (:func:`measure_parallax`), where
-    asked for and the views are the same size (else None); ``matches`` (sub-pixel
-    tracks used); ``reduction``: full-resolution px per check-image px.
-    """
-
-    scale: float
-    roll_deg: float
-    parallax: Parallax | None
-    matches: int
-    reduction: float
 
 
 # -- one place that knows how many frames a position holds -------------------------------
@@ -130,7 +100,7 @@ def burst_misfit(session: Session, position: str, path: Path) -> str | None:
     try:
         cache = session.path / DERIVED_DIR
         grey = load_linear_grey(path, cache, file_sha256(path), session.rig().image_size)
-        new = _reduced(to_pipeline([grey], linear=is_raw(path), overwrite=True)[0])[0]
+        new = reduced(to_pipeline([grey], linear=is_raw(path), overwrite=True)[0])[0]
         first = check_frame(session, frames[0])
         view = map_views(first.image, new, first.reduction, session.rig().focal_px,
                          reference(session, frames[0]))
@@ -190,179 +160,16 @@ def next_step(session: Session) -> str:
 # -- checks ---------------------------------------------------------------------------------
 
 
-def decoded(session: Session, frame: Frame) -> np.ndarray:
-    """A frame decoded: (H, W) float32 grey in [0, 1] of full scale
-    (:func:`rigkit.capture.rawio.load_linear_grey`, RAW through the session's cache)."""
-    return load_linear_grey(session.path / frame.file, session.path / DERIVED_DIR, frame.sha256)
-
-
-def full_image(session: Session, frame: Frame) -> np.ndarray:
-    """A frame at full resolution as the pipeline takes it: (H, W) float32 grey."""
-    grey = decoded(session, frame)
-    return to_pipeline([grey], linear=is_raw(session.path / frame.file), overwrite=True)[0]
-
-
-K = TypeVar("K", bound=Hashable)
-V = TypeVar("V")
-_KEPT = 6
-"""Frames (and left frames prepared, and view maps) the checks keep in memory, those
-used last: the left frame the others are mapped onto, a burst's first frame and its
-newest, the frames of the other positions. A check image is 3 MB; a prepared left
-frame 6 MB."""
-_lock = threading.Lock()
-
-
-def _kept(cache: dict[K, V], key: K, compute: Callable[[], V]) -> V:
-    """``cache[key]``, computed first where missing; only the ``_KEPT`` used last stay."""
-    with _lock:
-        if key in cache:
-            cache[key] = cache.pop(key)  # used last
-            return cache[key]
-    value = compute()
-    with _lock:
-        cache[key] = value
-        while len(cache) > _KEPT:
-            del cache[next(iter(cache))]
-    return value
-
-
-_CHECK_FRAMES: dict[str, CheckFrame] = {}
-"""Frames decoded and reduced for the checks, by their SHA-256: a frame is decoded once
-for all its checks (its own, the later positions' against it, the preview)."""
-_REFERENCES: dict[str, Reference] = {}
-"""Left check images prepared for matching (:func:`prepare_left`), by SHA-256."""
-_VIEWS: dict[tuple[str, str, float | None], ViewMap] = {}
-"""View maps (:func:`map_views`) by the left and the other frame's SHA-256 and the focal
-length that asks for the parallax."""
-
-
-def check_frame(session: Session, frame: Frame) -> CheckFrame:
-    """The :class:`CheckFrame` of ``frame``, decoded the first time only."""
-    return _kept(_CHECK_FRAMES, frame.sha256, lambda: _decode_for_checks(session, frame)[0])
-
-
-def _decode_for_checks(session: Session, frame: Frame) -> tuple[CheckFrame, np.ndarray]:
-    """``frame`` decoded: its :class:`CheckFrame`, and the frame at full resolution as
-    :func:`full_image` gives it."""
-    grey = decoded(session, frame)
-    clipped = np.count_nonzero(grey >= CLIP_LEVEL) / grey.size
-    linear = is_raw(session.path / frame.file)
-    full = to_pipeline([grey], linear=linear, overwrite=True)[0]
-    image, reduction = _reduced(full)
-    image.flags.writeable = False
-    return CheckFrame(image, reduction, clipped), full
-
-
 def _newest_for_checks(session: Session, position: str) -> np.ndarray | None:
     """Decodes ``position``'s newest frame for its checks (:func:`check_frame`) and
     returns it at full resolution where its shimmer against the burst's first frame is
     still to be measured (:func:`shimmer_check`), else None: one decoding for both."""
     frames = frames_at(session, position)
     newest = frames[-1]
-    due = len(frames) > 1 and (frames[0].sha256, newest.sha256) not in _MEASURED
-    if not due or newest.sha256 in _CHECK_FRAMES:
-        check_frame(session, newest)
-        return None
-    checked, full = _decode_for_checks(session, newest)
-    _kept(_CHECK_FRAMES, newest.sha256, lambda: checked)
-    return full
-
-
-def check_image(session: Session, frame: Frame) -> tuple[np.ndarray, float]:
-    """A frame as (h, w) float32 grey in [0, 255] (read-only), its longest side at most
-    ``CHECK_SIDE_PX``, and the reduction factor (full-resolution px per check px, >= 1)."""
-    checked = check_frame(session, frame)
-    return checked.image, checked.reduction
-
-
-def reference(session: Session, left: Frame, pool: ViewPool | None = None) -> Reference:
-    """The left ``frame``'s check image prepared for matching (:func:`prepare_left`, in
-    ``pool``'s threads where given), the first time only."""
-    image = check_frame(session, left).image
-    return _kept(_REFERENCES, left.sha256,
-                 lambda: prepare_left(image, MATCH_POINTS, CHECK_MATCHING, pool))
-
-
-def view_map(session: Session, position: str, left: Frame, frame: Frame) -> ViewMap:
-    """How ``position``'s ``frame`` maps onto the ``left`` frame (:func:`map_views`, with
-    the parallax for a right frame), the first time only."""
-    focal = session.rig().focal_px if position == "right" else None
-
-    def compute() -> ViewMap:
-        first = check_frame(session, left)
-        other = check_frame(session, frame).image
-        return map_views(first.image, other, first.reduction, focal, reference(session, left))
-
-    return _kept(_VIEWS, (left.sha256, frame.sha256, focal), compute)
-
-
-def _reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarray, float]:
-    """``image`` shrunk so its longest side is at most ``side_px``, and the factor."""
-    reduction = max(1.0, max(image.shape) / side_px)
-    if reduction > 1.0:
-        size = (round(image.shape[1] / reduction), round(image.shape[0] / reduction))
-        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-    return image, reduction
-
-
-MATCH_POINTS = 1500
-"""Corners of the left check image tracked into the other view."""
-CHECK_MATCHING = PipelineSettings(coarse_side_px=640)
-"""How the checks match views: SIFT's coarse alignment on a 640-px copy of the check
-images, which only starts the tracking of the corners at the check images' resolution
-(what the checks measure on). On a full-resolution frame 0.4 s of CPU less per view
-than at their 1024 px, and 700-1200 features agreeing on the alignment (12 needed)."""
-
-
-def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0,
-              focal_px: float | None = None, ref: Reference | None = None) -> ViewMap:
-    """How ``other`` maps onto ``left`` (check images, (h, w) float32, ``reduction``
-    full-resolution px per px): the scale and roll of the best homography at the image
-    centre and, given the full-resolution ``focal_px`` and views of the same size, the
-    left/right parallax as processing measures it (pseudo-rectified, so a camera only
-    turned leaves none). ``ref``: ``left`` prepared for matching with ``MATCH_POINTS``
-    corners, where already done (:func:`rigkit.pipeline.features.prepare_left`).
-    PipelineError if they do not match."""
-    ref = ref or prepare_left(left, MATCH_POINTS, CHECK_MATCHING)
-    matches = match_to(ref, other, "left/other", CHECK_MATCHING)
-    a, b = matches.left.astype(np.float32), matches.other.astype(np.float32)
-    similarity, _ = cv2.estimateAffinePartial2D(a, b, method=cv2.LMEDS)
-    if similarity is None:
-        similarity = matches.affine
-    centre = ((left.shape[1] - 1) / 2.0, (left.shape[0] - 1) / 2.0)
-    local = _local_linear(a, b, centre, similarity[:, :2])
-    scale = float(math.sqrt(abs(np.linalg.det(local))))
-    parallax = None
-    if focal_px is not None and abs(scale - 1.0) <= MAX_RIGHT_SCALE_CHANGE:
-        size = (left.shape[1], left.shape[0])
-        rect = pseudo_rectify(matches, focal_px / reduction, size)
-        parallax = measure_parallax(matches, rect, reduction)
-    return ViewMap(
-        scale=scale,
-        roll_deg=float(math.degrees(math.atan2(local[1, 0] - local[0, 1],
-                                               local[0, 0] + local[1, 1]))),
-        parallax=parallax,
-        matches=len(a),
-        reduction=reduction,
-    )
-
-
-def _local_linear(a: np.ndarray, b: np.ndarray, point: tuple[float, float],
-                  fallback: np.ndarray) -> np.ndarray:
-    """(2, 2) derivative at ``point`` (px) of the homography from points ``a`` to ``b``
-    ((N, 2) each). A camera tilted between positions adds keystone: the scale then grows
-    across the image by ~tilt x offset / f, a few 1e-4, as much as the back view's whole
-    magnification signal (1 - m ~ C_lb / z ~ 7e-3 ... 1e-3). The homography models it;
-    at the image centre (near the principal point) keystone adds no scale."""
-    homography, _ = cv2.findHomography(a, b, cv2.LMEDS)
-    if homography is None:
-        return fallback
-    x, y = point
-    w = homography[2, 0] * x + homography[2, 1] * y + homography[2, 2]
-    u = (homography[0, 0] * x + homography[0, 1] * y + homography[0, 2]) / w
-    v = (homography[1, 0] * x + homography[1, 1] * y + homography[1, 2]) / w
-    top = homography[:2, :2] - np.outer([u, v], homography[2, :2])
-    return np.asarray(top / w, dtype=np.float64)
+    if len(frames) > 1 and (frames[0].sha256, newest.sha256) not in _MEASURED:
+        return decoded_with_full(session, newest)
+    check_frame(session, newest)
+    return None
 
 
 def exif_check(session: Session, position: str) -> Finding:
@@ -531,7 +338,7 @@ def _pair_shimmer(session: Session, first: Frame, other: Frame, number: int,
     key = (first.sha256, other.sha256)
     if key not in _MEASURED:
         where = f"{other.position} frames 1 and {number}"
-        start = _kept(_STARTS, first.sha256,
+        start = kept(_STARTS, first.sha256,
                       lambda: shimmer_start(full_image(session, first), where))
         image = full_image(session, other) if image is None else image
         _MEASURED[key] = shimmer_from(start, image, where)

@@ -40,6 +40,9 @@ def run(args: argparse.Namespace) -> int:
         capture = args.session.parent if args.session is not None else args.capture
         config = FieldConfig(capture=capture, session=args.session, rig=args.rig,
                              watch=args.watch, port=args.port, protocol=args.protocol)
+    from rigkit.core.lazy import preload
+
+    preload("scipy.optimize")  # the checks' fits: imported while the screen opens
     code = run_field(config)
     if args.demo:
         print(f"the demo session is kept in {config.session}")

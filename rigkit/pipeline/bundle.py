@@ -23,7 +23,7 @@ from rigkit.pipeline.rectify import Rectification
 
 MAX_BASELINE_TURN_RAD = 0.2  # how far the fit may turn the rectification's baseline
 MAX_DEPTH_STEPS = 8
-DEPTH_TOL_PX = 1e-6  # far below what the outer finite differences resolve (~1e-3 px)
+DEPTH_TOL_PX = 1e-6  # far below what the outer fit resolves (its columns hold the depths)
 INLIER_PX = 1.0  # tracks within this of the fit count in the standard errors
 CENTRE_STEP_PX = 1e-2  # finite-difference step of a view's centre (the residuals are ~linear)
 

@@ -25,13 +25,13 @@ from rigkit.capture.actions import check_frame_file
 from rigkit.capture.field import (
     add_position_frame,
     burst_misfit,
-    check_image,
     frames_at,
     newest_failed,
     onsite_checks,
     resume_step,
 )
 from rigkit.capture.positioning import set_field_step
+from rigkit.capture.views import check_image
 from rigkit.core.chatter import private_terminal
 from rigkit.errors import RigkitError, environment_message
 from rigkit.tui.config import FieldConfig

@@ -14,16 +14,15 @@ import pytest
 
 from rigkit.capture import create_session, load_session
 from rigkit.capture.field import (
-    ViewMap,
     add_position_frame,
     back_checks,
     exif_check,
     frames_at,
-    map_views,
     next_step,
     onsite_checks,
     right_checks,
 )
+from rigkit.capture.views import ViewMap, map_views
 from rigkit.errors import InputError
 from rigkit.pipeline.checks import MIN_PARALLAX_PX, Parallax, implied_range_m
 from rigkit.rig import load_rig
@@ -323,11 +322,11 @@ def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
     """The left, right and back frames checked in turn, as ``rigkit field`` takes them
     (the checks, the check image beside them, the back frame's roles check against the
     right one): each file decoded once."""
-    from rigkit.capture import field
+    from rigkit.capture import views
 
     read: list[str] = []
-    decoded = field.decoded
-    monkeypatch.setattr(field, "decoded", lambda s, f: read.append(f.file) or decoded(s, f))
+    decoded = views.decoded
+    monkeypatch.setattr(views, "decoded", lambda s, f: read.append(f.file) or decoded(s, f))
     left = texture(seed=11)
     frames = {"left": left, "right": similarity(left, 1.0, 0.4, (6.0, 1.0)),
               "back": similarity(left, 0.99, -0.3, (2.0, -3.0))}
@@ -335,5 +334,5 @@ def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
     for position, image in frames.items():
         session = add_position_frame(session, position, _png(tmp_path / f"{position}.png", image))
         onsite_checks(session, position)
-        field.check_image(session, frames_at(session, position)[-1])
+        views.check_image(session, frames_at(session, position)[-1])
     assert read == ["raw/left.png", "raw/right.png", "raw/back.png"]
