@@ -36,7 +36,7 @@ def function(module: str, name: str) -> Callable[..., Any]:
     make everything that imports it wait for that library."""
 
     def call(*args: Any, **kwargs: Any) -> Any:
-        return getattr(importlib.import_module(module), name)(*args, **kwargs)
+        return getattr(load(module), name)(*args, **kwargs)
 
     call.__name__ = call.__qualname__ = name
     call.__doc__ = f"{module}.{name}, imported on first call."
@@ -52,7 +52,27 @@ def preload(*modules: str) -> None:
     the thread that uses the module to raise, where it is reported."""
     missing = [name for name in modules if name not in sys.modules]
     if missing:
-        threading.Thread(target=_import_all, args=(missing,), name="rigkit-preload").start()
+        thread = threading.Thread(target=_import_all, args=(missing,), name="rigkit-preload")
+        with _lock:  # listed once started; it leaves the list under the same lock
+            thread.start()
+            _preloading.append(thread)
+
+
+def load(module: str) -> Any:
+    """``importlib.import_module(module)`` once any :func:`preload` under way has ended.
+    Two threads importing one library's modules at once can deadlock where its modules
+    import each other (Python then raises in one of them); rigkit's own imports of a
+    library that may be preloading go through here."""
+    with _lock:
+        running = list(_preloading)
+    for thread in running:
+        thread.join()
+    return importlib.import_module(module)
+
+
+_lock = threading.Lock()
+_preloading: list[threading.Thread] = []
+"""The preload threads started, until they end."""
 
 
 def _import_all(modules: list[str]) -> None:
@@ -60,4 +80,6 @@ def _import_all(modules: list[str]) -> None:
         try:
             importlib.import_module(name)
         except Exception:  # raised again, and reported, where the module is used
-            return
+            break
+    with _lock:
+        _preloading.remove(threading.current_thread())

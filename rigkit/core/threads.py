@@ -25,8 +25,8 @@ the process (NumPy's and SciPy's are two different OpenBLAS builds).
 from __future__ import annotations
 
 import functools
-import importlib
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -35,9 +35,12 @@ from typing import Any, ParamSpec, TypeVar
 
 import threadpoolctl
 
+from rigkit.core.lazy import load
+
 _lock = threading.Lock()
 _holders = 0
-_original: Any = None
+_limiters: list[Any] = []  # the limits each body set, undone in reverse by the last
+_modules_seen = 0  # len(sys.modules) when the libraries were last found
 _libraries: Any = None
 
 P = ParamSpec("P")
@@ -45,38 +48,37 @@ R = TypeVar("R")
 
 
 BLAS_CARRIERS = ("scipy.linalg",)
-"""Modules whose import loads a BLAS library of its own (SciPy's OpenBLAS, beside NumPy's),
-imported before the limits are set: the pipeline imports SciPy's optimisers when it first
-calls them (:func:`rigkit.core.lazy.function`), inside a body, and a library loaded there
-would run at its own thread count, its last bits set by the machine's cores."""
+"""Modules whose import loads a BLAS library of its own (SciPy's OpenBLAS, beside NumPy's):
+imported by :func:`deterministic` before its body begins. The pipeline imports SciPy when
+it first calls it (:func:`rigkit.core.lazy.function`), and a library first loaded inside a
+body would run at its own thread count, its last bits set by the machine's cores."""
 
 
 @contextmanager
 def serial_blas() -> Iterator[None]:
     """Run the body with every BLAS library at one thread. Bodies may nest and overlap
     in several threads: each sets one thread as it starts (per-thread BLAS limits, as
-    OpenMP builds have, need it), and the last to end restores the limits found by the
-    first. The libraries are those loaded when the first began, SciPy's among them
-    (``BLAS_CARRIERS``): finding them takes ~1 ms (every library loaded is looked at),
-    and a pipeline run starts some 40 bodies, its stages and their threads' tasks."""
-    global _holders, _original, _libraries
+    OpenMP builds have, need it), and the last to end restores the limits found before.
+    The libraries are found when the first body begins, and again when one begins after
+    a module was imported (a library loaded by a body that is still running): finding
+    them takes ~1 ms (every library loaded is looked at), and a pipeline run starts some
+    40 bodies, its stages and their threads' tasks."""
+    global _holders, _libraries, _modules_seen
     with _lock:
-        if _holders == 0:  # the loaded libraries, found once for the bodies that overlap
-            for name in BLAS_CARRIERS:
-                importlib.import_module(name)
+        if _holders == 0 or len(sys.modules) != _modules_seen:
             _libraries = threadpoolctl.ThreadpoolController()
-        limiter = _as_controller(lambda: _libraries.limit(limits=1, user_api="blas"))
-        if _holders == 0:
-            _original = limiter
+            _modules_seen = len(sys.modules)
+        _limiters.append(_as_controller(lambda: _libraries.limit(limits=1, user_api="blas")))
         _holders += 1
     try:
         yield
     finally:
         with _lock:
             _holders -= 1
-            if _holders == 0:
-                _as_controller(_original.restore_original_limits)
-                _original = None
+            if _holders == 0:  # each library back to the limit it had before any body
+                for limiter in reversed(_limiters):
+                    _as_controller(limiter.restore_original_limits)
+                _limiters.clear()
 
 
 def _as_controller(change: Callable[[], R]) -> R:
@@ -96,10 +98,13 @@ def _as_controller(change: Callable[[], R]) -> R:
 
 
 def deterministic(function: Callable[P, R]) -> Callable[P, R]:
-    """Decorator: ``function`` runs inside :func:`serial_blas`."""
+    """Decorator: ``function`` runs inside :func:`serial_blas`, with the libraries that
+    bring their own BLAS (``BLAS_CARRIERS``) imported first."""
 
     @functools.wraps(function)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        for name in BLAS_CARRIERS:
+            load(name)
         with serial_blas():
             return function(*args, **kwargs)
 

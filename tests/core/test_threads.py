@@ -84,10 +84,12 @@ def test_a_view_pools_tasks_hold_one_blas_thread_and_come_back_in_order() -> Non
                      range(4))
 
 
-def test_a_blas_library_imported_inside_a_body_is_held_too() -> None:
-    """SciPy, imported when the pipeline first calls it (rigkit.core.lazy.function), is
-    imported inside the body: its OpenBLAS must run at one thread there as NumPy's does.
-    A fresh interpreter, where nothing has imported SciPy yet."""
+def test_a_blas_library_imported_while_a_body_runs_is_held_too() -> None:
+    """SciPy is imported when the pipeline first calls it (rigkit.core.lazy.function),
+    possibly while another body runs (a frame decoding in a pool): a deterministic
+    function imports it before its body begins, and the body finds it, so its OpenBLAS
+    runs at one thread there as NumPy's does; the last body's end gives every library
+    back its own limit. A fresh interpreter, where nothing has imported SciPy yet."""
     import json
     import os
     import subprocess
@@ -97,16 +99,25 @@ def test_a_blas_library_imported_inside_a_body_is_held_too() -> None:
 import json, sys
 import numpy
 from threadpoolctl import threadpool_info
-from rigkit.core.threads import serial_blas
-assert "scipy" not in sys.modules
-with serial_blas():
+from rigkit.core.threads import deterministic, serial_blas
+
+def blas():
+    return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+@deterministic
+def fit():
     import scipy.linalg
-    inside = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
-print(json.dumps(inside))
+    return blas()
+
+default = blas()[0]
+assert "scipy" not in sys.modules
+with serial_blas():  # a body already running
+    inside = fit()
+print(json.dumps({"default": default, "inside": inside, "after": blas()}))
 """
     # Each library at its own default, as a user's shell leaves it.
     env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
-    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                         check=True, timeout=120, env=env).stdout
-    threads = json.loads(out)
-    assert len(threads) >= 2 and set(threads) == {1}  # NumPy's and SciPy's libraries
+    out = json.loads(subprocess.run([sys.executable, "-c", probe], capture_output=True,
+                                    text=True, check=True, timeout=120, env=env).stdout)
+    assert len(out["inside"]) >= 2 and set(out["inside"]) == {1}  # NumPy's and SciPy's
+    assert set(out["after"]) == {out["default"]}
