@@ -28,11 +28,16 @@ its float64 arrays (4.7 MB each at 4608 columns) stay in the cache; at 512 rows
 
 def rectified_rays(rect: Rectification, u: np.ndarray, disparity: np.ndarray) -> tuple:
     """Normalised x of the left and right rays (rectified frame, z = 1) for rectified
-    left column ``u`` (px, full-resolution canvas) and rectified disparity (px)."""
+    left column ``u`` (px, full-resolution canvas) and rectified disparity (px),
+    broadcast together: two float64 arrays, each computed in place."""
     f = rect.K[0, 0]
     cx = rect.K[0, 2] + rect.canvas[0, 2]
-    a = (u - cx) / f
-    b = (u - disparity - rect.shift - cx) / f
+    a = np.subtract(u, cx, dtype=np.float64)
+    a /= f
+    b = np.subtract(u, disparity, dtype=np.float64)
+    b -= rect.shift
+    b -= cx
+    b /= f
     return a, b
 
 
@@ -44,22 +49,15 @@ def triangulate_z(
     right-camera yaw correction ``beta`` (rad). Non-positive or infinite results (behind
     the rig) become NaN. Float64, of the broadcast shape.
 
-    The numbers of ``a - (b + t) / (1 - b t)`` with :func:`rectified_rays`' ``a`` and
-    ``b``, each step in place in one array: on a chunk of a 16 MP image every fresh
-    array of its size is memory traffic, which costs more than the arithmetic."""
-    f = rect.K[0, 0]
-    cx = rect.K[0, 2] + rect.canvas[0, 2]
+    ``a - (b + t) / (1 - b t)`` with :func:`rectified_rays`' ``a`` and ``b``, each step
+    in place: on a chunk of a 16 MP image every fresh array of its size is memory
+    traffic, which costs more than the arithmetic."""
+    a, b = rectified_rays(rect, u, disparity)
     t = np.tan(beta)
-    b = np.subtract(u, disparity, dtype=np.float64)  # rectified_rays' b, step by step
-    b -= rect.shift
-    b -= cx
-    b /= f
     z = np.multiply(b, t)
     np.subtract(1.0, z, out=z)  # 1 - b t
     b += t
     np.divide(b, z, out=z)  # the right ray turned by beta: tan(atan(b) + beta)
-    a = np.subtract(u, cx, dtype=np.float64)
-    a /= f
     np.subtract(a, z, out=z)
     with np.errstate(divide="ignore", invalid="ignore"):
         np.divide(baseline_m, z, out=z)

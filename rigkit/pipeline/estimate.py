@@ -339,8 +339,9 @@ def _lenses(
     rig's principal point for it."""
     given = Lens(rig.focal_px, size, rig.distortion)
     if not s.distortion_terms:
-        return tuple(Lens(rig.focal_px, size, rig.distortion, centre)  # type: ignore[return-value]
-                     for centre in rig.principal_points_px), None
+        left, right, back = (Lens(rig.focal_px, size, rig.distortion, centre)
+                             for centre in rig.principal_points_px)
+        return (left, right, back), None
     start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
     fit = refine_lens(raw_lr, raw_lb, start, given, rig, s)
     return (fit.lens(rig.focal_px, size, 0), fit.lens(rig.focal_px, size, 1),
