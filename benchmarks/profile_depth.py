@@ -11,7 +11,9 @@ A position given as comma-separated files is a burst (as ``rigkit depth`` takes 
 imports cost nothing) and prints each run's row: the machine's noise shows in their
 spread; ``--memory`` adds each stage's peak resident memory; ``--cpu`` gives each
 stage's CPU seconds (the process's, all threads together) instead of its wall seconds,
-which a machine shared with other jobs moves far less. Run it against another
+which a machine shared with other jobs moves far less; ``--busy`` adds, under each run's
+wall seconds, how many cores each stage kept busy on average (its CPU seconds over its
+wall seconds: 1.0 on 2 cores is one of them idle). Run it against another
 checkout with ``PYTHONPATH=/that/checkout`` to compare (docs/results.md).
 """
 
@@ -113,7 +115,11 @@ def main() -> int:
                     help="sample resident memory and print each stage's peak (MB)")
     ap.add_argument("--cpu", action="store_true",
                     help="CPU seconds of the process per stage instead of wall seconds")
+    ap.add_argument("--busy", action="store_true",
+                    help="under each run's wall seconds, the cores each stage kept busy")
     args = ap.parse_args()
+    if args.busy and args.cpu:
+        ap.error("--busy goes with wall seconds: leave out --cpu")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     clock = time.process_time if args.cpu else time.perf_counter
 
@@ -127,8 +133,12 @@ def main() -> int:
     cpu_stages: dict[str, float] = {}
     _timed(depthrun, "load_capture", times, "load", clock)
     _timed(files, "write_together", times, "write", clock)
-    if args.cpu:
-        _staged(depthrun, cpu_stages, clock)
+    cpu_times: dict[str, float] = {}
+    if args.cpu or args.busy:
+        _staged(depthrun, cpu_stages, time.process_time)
+    if args.busy:
+        _timed(depthrun, "load_capture", cpu_times, "load", time.process_time)
+        _timed(files, "write_together", cpu_times, "write", time.process_time)
     argv = ["depth", args.left, args.right, args.back, "--focal-px", args.focal_px,
             "--baseline-lr", args.baseline_lr, "--baseline-lb", args.baseline_lb,
             "--out", str(args.out), "--quiet"]
@@ -139,7 +149,8 @@ def main() -> int:
     profiler = cProfile.Profile() if args.profile else None
     for run in range(args.repeat):
         times.clear()
-        t1 = clock()
+        cpu_times.clear()
+        t1, c1 = clock(), time.process_time()
         sampler = RssSampler() if args.memory else None
         if profiler is not None:
             profiler.enable()
@@ -157,6 +168,15 @@ def main() -> int:
         print(f"{run + 1:>3} {imports if run == 0 else 0.0:6.2f} {times['load']:5.2f} "
               + " ".join(f"{stages.get(s, 0.0):6.2f}" for s in STAGES)
               + f" {times['write']:5.2f} {total - known:5.2f} {total:6.2f} {peak:7.0f}")
+        if args.busy:
+            cpu_total = time.process_time() - c1
+            cpu = [cpu_times["load"], *(cpu_stages.get(s, 0.0) for s in STAGES),
+                   cpu_times["write"]]
+            wall = [times["load"], *(stages.get(s, 0.0) for s in STAGES), times["write"]]
+            print(f"{'':>3} {'cores':>6} " + " ".join(
+                f"{c / w if w > 0 else 0.0:{5 if i in (0, len(cpu) - 1) else 6}.2f}"
+                for i, (c, w) in enumerate(zip(cpu, wall, strict=True)))
+                + f" {'':>5} {cpu_total / (clock() - t1):6.2f}")
         if sampler is not None and not args.cpu:  # the stages follow one another
             edges = [("load", times["load@"], times["load@"] + times["load"])]
             at = edges[0][2]
