@@ -55,8 +55,8 @@ def log_failure(path: Path, run_id: str, message: str) -> None:
         try:
             detail = message.strip().replace("\n", "\n    ")  # a trace stays indented
             log_event(path, "process", f"run {run_id}: FAILED: {detail}")
-        except OSError:
-            pass  # a read-only session cannot record its failure; the batch still reports it
+        except (OSError, RigkitError):  # read-only, or its log a link: the batch still says it
+            pass
 
 
 def auto_jobs(paths: Sequence[Path], available_bytes: int | None = None) -> int:

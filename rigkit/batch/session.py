@@ -27,6 +27,7 @@ from rigkit.capture.actions import changing, frame_problems, session_frames
 from rigkit.capture.comparisons import LOG_NAME, Comparison, append_rows, csv_text
 from rigkit.capture.session import (
     DERIVED_DIR,
+    HISTORY_FILE,
     RESULTS_DIR,
     Session,
     load_session,
@@ -36,6 +37,7 @@ from rigkit.capture.session import (
     utc_now,
 )
 from rigkit.core.files import Content, check_free_space, replace_folder
+from rigkit.core.safefs import check_regular
 from rigkit.errors import InputError
 from rigkit.reporting.previews import preview_set
 from rigkit.reporting.scale import RunReference, run_scale_note
@@ -113,6 +115,8 @@ def _process_locked(
     problems = frame_problems(session)
     if problems:
         raise InputError(f"{session.path}: " + "; ".join(problems))
+    for log in (HISTORY_FILE, LOG_NAME):  # the run appends to them once its results are in
+        check_regular(session.path / log)
     width, height = session.rig().image_size
     check_free_space(session.path, RESULT_BYTES_PER_PIXEL * width * height, str(session.path))
     try:

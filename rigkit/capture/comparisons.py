@@ -148,7 +148,43 @@ def _parse(record: dict[str, str]) -> Comparison:
             raise ValueError(f"column {name} is empty")
         kind = _TYPES[name]
         values[name] = float(text) if kind == "float" else int(text) if kind == "int" else text
-    return Comparison(**values)  # type: ignore[arg-type]
+    row = Comparison(**values)  # type: ignore[arg-type]
+    _check_row(row)
+    return row
+
+
+_STATUSES = (STATUS_OK, STATUS_NO_ESTIMATE, STATUS_NO_READING)
+
+
+def _check_row(row: Comparison) -> None:
+    """ValueError where the row is no comparison ``rigkit process`` writes: a status of
+    its own, ranges that are positive where they exist, and the errors that follow from
+    them (to the log's digits). An edited or damaged row is skipped as damaged, not
+    counted: a NaN laser range must not count as "within 1 %", nor a stored error stand
+    for ranges that do not give it."""
+    if row.status not in _STATUSES:
+        raise ValueError(f"status {row.status!r} is none of {', '.join(_STATUSES)}")
+    if not (math.isfinite(row.u) and math.isfinite(row.v)) or row.window_px < 1:
+        raise ValueError("the target's pixel or window is not a position")
+    if not 0.0 <= row.valid_fraction <= 1.0:
+        raise ValueError(f"valid_fraction {row.valid_fraction:g} is not a fraction")
+    laser, estimate = row.laser_range_m, row.estimate_range_m
+    if (row.laser_readings > 0) != (row.status != STATUS_NO_READING) or row.laser_readings < 0:
+        raise ValueError(f"{row.laser_readings} laser readings for status {row.status}")
+    if row.status != STATUS_NO_READING and not (math.isfinite(laser) and laser > 0):
+        raise ValueError(f"laser_range_m {laser:g} is not a range")
+    if row.status != STATUS_OK:
+        return
+    if not (math.isfinite(estimate) and estimate > 0 and row.estimate_sigma_m >= 0):
+        raise ValueError(f"estimate_range_m {estimate:g} (sigma {row.estimate_sigma_m:g}) "
+                         "is not a range")
+    digits = 10.0 ** -(SIGNIFICANT_DIGITS - 1)  # what the log's rounding may move
+    if (not math.isclose(row.error_m, estimate - laser, rel_tol=0.0,
+                         abs_tol=digits * (estimate + laser))
+            or not math.isclose(row.error_pct, 100 * row.error_m / laser,
+                                rel_tol=10 * digits, abs_tol=1e-12)):
+        raise ValueError(f"error_m {row.error_m:g} and error_pct {row.error_pct:g} do not "
+                         f"follow from the ranges ({estimate:g} m against {laser:g} m)")
 
 
 def latest_run(rows: Iterable[Comparison]) -> list[Comparison]:

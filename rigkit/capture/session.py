@@ -348,6 +348,8 @@ def _frame(value: Any, key: KeyPath, position: str) -> Frame:
     file = _text(keys["file"], key.child("file"))
     if Path(file).is_absolute() or ".." in Path(file).parts:
         raise key.child("file").error("must be a path inside the session", file)
+    if any(ord(c) < 32 or ord(c) == 127 for c in file):
+        raise key.child("file").error("must be a file name without control characters", file)
     return Frame(
         position=position,
         file=file,

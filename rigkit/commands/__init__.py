@@ -14,6 +14,7 @@ in ``NAME.py``, and tests/commands/test_loading.py holds each copy to its origin
 from __future__ import annotations
 
 import argparse
+import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -30,6 +31,18 @@ def parse_distortion(text: str) -> Distortion:
         return distortion_coefficients([float(x) for x in text.split(",")])
     except ValueError as exc:
         raise InputError(f"--distortion {text!r}: {exc}") from None
+
+
+def finite(text: str) -> float:
+    """An argparse type: a finite number (``nan`` and ``inf``, which ``float`` takes, are
+    refused with the flag named)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
 
 
 def count(text: str) -> int:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rigkit.commands import finite
+
 EXAMPLE = """examples:
   rigkit depth left.NRW right.NRW back.NRW --rig rigs/p1000-tripod.yaml --out out/depth.npy
 
@@ -48,9 +50,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("back", type=_frames, help="back frame or burst, same size")
     p.add_argument("--rig", type=Path, help="rig profile YAML (gives f, both baselines, the "
                    "lens and the image size every frame must have)")
-    p.add_argument("--focal-px", type=float, help="focal length, px (overrides --rig)")
-    p.add_argument("--baseline-lr", type=float, help="left-right baseline C_lr, m")
-    p.add_argument("--baseline-lb", type=float, help="left-back distance C_lb along z, m")
+    p.add_argument("--focal-px", type=finite, help="focal length, px (overrides --rig)")
+    p.add_argument("--baseline-lr", type=finite, help="left-right baseline C_lr, m")
+    p.add_argument("--baseline-lb", type=finite, help="left-back distance C_lb along z, m")
     p.add_argument("--distortion", metavar="K1[,K2[,P1,P2[,K3]]]",
                    help="lens distortion, OpenCV model on normalised coordinates about the "
                    "image centre (overrides --rig's camera.distortion)")

@@ -103,7 +103,7 @@ def _lensfun(text: str) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     from rigkit.batch.depthrun import run_depth
     from rigkit.capture.frames import frame_files
-    from rigkit.core.files import check_writable_folder, write_together
+    from rigkit.core.files import check_not_inputs, check_writable_folder, write_together
     from rigkit.core.progress import Progress
     from rigkit.errors import InputError
 
@@ -114,6 +114,9 @@ def run(args: argparse.Namespace) -> int:
     check_writable_folder(args.out.parent, f"--out {args.out}")
     rig = rig_source(args)
     bursts = frame_files({pos: getattr(args, pos) for pos in POSITIONS})
+    read = [frame.path for frames in bursts.values() for frame in frames]
+    check_not_inputs([args.out.parent / name for name in _output_names(args.out, args.preview)],
+                     read + ([args.rig] if args.rig is not None else []), f"--out {args.out}")
     task = args.left[0].name
     with Progress("depth", [task], quiet=args.quiet) as progress:
         run = run_depth(bursts, rig, force=args.force,
@@ -125,25 +128,28 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _output_names(out: Path, preview: bool) -> list[str]:
+    """The files ``rigkit depth --out OUT`` writes beside OUT, in the order of
+    :func:`_outputs`."""
+    names = [out.name, f"{out.stem}.sigma.npy", f"{out.stem}.json", f"{out.stem}.grey.png",
+             f"{out.stem}.flags.npy"]
+    return names + ([f"{out.stem}.png", f"{out.stem}.sigma.png"] if preview else [])
+
+
 def _outputs(run: Any, out: Path, preview: bool) -> dict[str, Any]:
     import json
 
     from rigkit.reporting.previews import colorize, depth_range
 
     result = run.result
-    files: dict[str, Any] = {
-        out.name: result.depth,
-        f"{out.stem}.sigma.npy": result.sigma,
-        f"{out.stem}.json": json.dumps(run.metadata(), indent=2),
-        f"{out.stem}.grey.png": run.left_grey(),
-        f"{out.stem}.flags.npy": result.flags(),
-    }
+    contents: list[Any] = [result.depth, result.sigma, json.dumps(run.metadata(), indent=2),
+                           run.left_grey(), result.flags()]
     if preview:
         lo, hi = depth_range(result.depth)
-        files[f"{out.stem}.png"] = colorize(result.depth, lo, hi, "depth z (m)")
-        files[f"{out.stem}.sigma.png"] = colorize(100 * result.sigma / result.depth, 0.0, 2.0,
-                                                  "1-sigma error (% of depth)")
-    return files
+        contents += [colorize(result.depth, lo, hi, "depth z (m)"),
+                     colorize(100 * result.sigma / result.depth, 0.0, 2.0,
+                              "1-sigma error (% of depth)")]
+    return dict(zip(_output_names(out, preview), contents, strict=True))
 
 
 def _summary(run: Any, out: Path) -> str:

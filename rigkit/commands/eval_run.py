@@ -6,8 +6,20 @@ import argparse
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.synth.evaluate import evaluate_scenes, format_table, goal_line, write_csv
+    from rigkit.core.files import check_not_inputs
+    from rigkit.errors import InputError
+    from rigkit.synth.evaluate import (
+        evaluate_scenes,
+        files_read,
+        format_table,
+        goal_line,
+        write_csv,
+    )
 
+    if args.csv:
+        if args.csv.suffix.lower() != ".csv":
+            raise InputError(f"--csv {args.csv}: expected a .csv file name")
+        check_not_inputs([args.csv], files_read(args.scenes, args.depth_dir), f"--csv {args.csv}")
     rows = evaluate_scenes(args.scenes, args.depth_dir)
     print(format_table(rows))
     if args.csv:

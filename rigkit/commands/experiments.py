@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rigkit.commands import finite
+
 # rigkit.experiments.table1.METHODS, repeated here so that --help does not import the
 # experiments (tests/commands/test_loading.py holds the copy to the original).
 METHODS = ("rigkit", "paper", "loop-zhang", "sfm-mvs")
@@ -62,7 +64,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     b.add_argument("--runs", type=int, default=200, help="simulations (default 200)")
     b.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    b.add_argument("--noise", type=float, default=None,
+    b.add_argument("--noise", type=finite, default=None,
                    help="pixel noise sigma per axis (default 2^-1/4 px: the paper's "
                    "covariance diag(1/sqrt 2))")
     b.add_argument("--out", type=Path, required=True, help="output folder")

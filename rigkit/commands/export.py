@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count
+from rigkit.commands import count, finite
 
 EXAMPLE = """examples:
   rigkit export capture/example --out out/example-cloud
@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="camera: the left camera's frame; map: the tripod's UTM zone "
                    "(refused if it cannot be solved); auto (default): map when the session "
                    "has a tripod position")
-    p.add_argument("--max-residual-deg", type=float,
+    p.add_argument("--max-residual-deg", type=finite,
                    help="largest angle a target's laser direction may miss its pixel by "
                    "after the orientation fit (default 1.5)")
     p.add_argument("--quiet", action="store_true", help="no progress output")

@@ -114,9 +114,53 @@ def _next_reading(rangefinder: Rangefinder, args: argparse.Namespace) -> Reading
                   file=sys.stderr, flush=True)
 
 
+def _check_output(args: argparse.Namespace) -> None:
+    """InputError, before the port is opened, where ``--output`` is no JSON-lines log
+    (an image, a document: appended to, it would be damaged) or is ``--raw-log`` too."""
+    path = args.output
+    if args.raw_log is not None and os.path.realpath(args.raw_log) == os.path.realpath(path):
+        raise InputError(f"--output {path}: also --raw-log; give the two logs two files")
+    try:
+        with open(path, "rb") as handle:
+            first = handle.readline(1 << 16)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise InputError(f"cannot append to {path}: {exc.strerror}") from None
+    try:
+        ok = not first.strip() or isinstance(json.loads(first), dict)
+    except ValueError:
+        ok = False
+    if not ok:
+        raise InputError(f"--output {path}: holds something other than readings (its first "
+                         "line is no JSON object); give a new file or a log this command "
+                         "wrote")
+
+
+def _append_to(path: str) -> TextIO:
+    """``path`` opened to append lines; a last line cut short (a log whose writer was
+    stopped mid-line) is ended first, so the next reading is a line of its own."""
+    try:
+        with open(path, "rb") as handle:
+            end = handle.seek(0, os.SEEK_END)
+            torn = end > 0 and handle.seek(end - 1) >= 0 and handle.read(1) != b"\n"
+    except FileNotFoundError:
+        torn = False
+    except OSError as exc:
+        raise InputError(f"cannot append to {path}: {exc.strerror}") from None
+    try:
+        output = open(path, "a", encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot append to {path}: {exc.strerror}") from None
+    if torn:
+        output.write("\n")
+    return output
+
+
 def run_log(args: argparse.Namespace) -> int:
     timeout = math.inf if args.timeout is None else args.timeout
     count = 0
+    _check_output(args)
     with _open(args, timeout) as rangefinder:
         spec = rangefinder.protocol
         requested = args.trigger or spec.request_by_default
@@ -125,11 +169,7 @@ def run_log(args: argparse.Namespace) -> int:
                 f"--interval {args.interval:g} is too short for {spec.name}: requests must "
                 f"be at least {spec.min_request_interval_s:g} s apart"
             )
-        try:
-            output = open(args.output, "a", encoding="utf-8")
-        except OSError as exc:
-            raise InputError(f"cannot append to {args.output}: {exc.strerror}") from None
-        with output:
+        with _append_to(args.output) as output:
             try:
                 while args.count is None or count < args.count:
                     started = time.monotonic()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count
+from rigkit.commands import count, finite
 
 DEFAULT_RANGE_M = 300.0
 # The budget's defaults, repeated here so that --help does not import the pipeline they
@@ -58,7 +58,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--range",
         dest="ranges",
         metavar="M",
-        type=_positive_float,
+        type=_range_m,
         action="append",
         help=f"a range to examine, metres; repeat for several (default: the profile's "
         f"nominal_range_m, else {DEFAULT_RANGE_M:g})",
@@ -159,7 +159,15 @@ def _non_negative_float(text: str) -> float:
 
 
 def _float(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    return finite(text)
+
+
+MAX_RANGE_M = 100_000.0
+"""The longest range ``--range`` takes (as a profile's ``nominal_range_m``)."""
+
+
+def _range_m(text: str) -> float:
+    value = _positive_float(text)
+    if value > MAX_RANGE_M:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_RANGE_M:g} m, got {text}")
+    return value

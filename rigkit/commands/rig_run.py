@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -17,12 +18,20 @@ from rigkit.rig.findings import Finding
 
 def run_calibrate(args: argparse.Namespace) -> int:
     """``rigkit rig calibrate``: 0 when the profile is written."""
-    from rigkit.core.files import write_text
+    from rigkit.core.files import replaced_entry, write_text
     from rigkit.errors import InputError
     from rigkit.reporting.scale import LASER_ACCURACY_M, format_calibration, sessions_targets
     from rigkit.rig.calibration import calibrated_profile, fit_scale
     from rigkit.rig.profile import dump_rig
 
+    if args.out.suffix.lower() not in (".yaml", ".yml"):
+        raise InputError(f"--out {args.out}: expected a .yaml file name for the profile")
+    entry = Path(replaced_entry(args.out))
+    for session in args.sessions:  # what was captured is kept as it was
+        if entry.is_relative_to(os.path.realpath(session)):
+            raise InputError(f"--out {args.out}: inside the session {session}, whose files "
+                             "are kept as captured; write the profile elsewhere, e.g. "
+                             "rigs/NAME.yaml")
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out}: exists; give --force to overwrite it")
     accuracy = args.laser_sigma_m or LASER_ACCURACY_M

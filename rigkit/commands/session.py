@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count
+from rigkit.commands import count, finite
 from rigkit.commands.session_position import register_set_position, register_set_rig
 
 EXAMPLE = """examples:
@@ -55,7 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     target = actions.add_parser("add-target", help="a pixel in the left image and its range")
     target.add_argument("session", type=Path)
-    target.add_argument("--pixel", nargs=2, type=float, metavar=("U", "V"), required=True,
+    target.add_argument("--pixel", nargs=2, type=finite, metavar=("U", "V"), required=True,
                         help="target centre in the left image, px (x right, y down)")
     target.add_argument("--name", help="target name (default T1, T2, ...); an existing "
                         "name adds readings to that target")
@@ -71,10 +71,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default: the rig profile's port)")
     target.add_argument("--protocol", help="device protocol (default: the rig profile's)")
     target.add_argument("--shots", type=int, default=1, help="readings to take from --device")
-    target.add_argument("--timeout", type=float, default=30.0,
+    target.add_argument("--timeout", type=finite, default=30.0,
                         help="seconds to wait for each device reading")
-    target.add_argument("--inclination", type=float, help="inclination of typed ranges, deg")
-    target.add_argument("--azimuth", type=float, help="azimuth of typed ranges, deg clockwise "
+    target.add_argument("--inclination", type=finite, help="inclination of typed ranges, deg")
+    target.add_argument("--azimuth", type=finite, help="azimuth of typed ranges, deg clockwise "
                         "from north (true or magnetic: the rig profile's rangefinder.azimuth)")
     target.add_argument("--note", default="", help="what the target is")
     target.set_defaults(runner="rigkit.commands.session_run:run_add_target")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count
+from rigkit.commands import count, finite
 
 EXAMPLE = """examples:
   rigkit session set-position capture/ridge-0412 --lat 46.55123 --lon 7.98456 --height-m 1012
@@ -24,15 +24,15 @@ def register_set_position(actions: argparse._SubParsersAction) -> None:
         "set-position", help="record where the tripod stood (typed in, or from a GPS)",
         epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("session", type=Path)
-    p.add_argument("--lat", type=float, help="latitude, degrees (WGS 84, north positive)")
-    p.add_argument("--lon", type=float, help="longitude, degrees (east positive)")
-    p.add_argument("--height-m", type=float, help="height, metres (above mean sea level, "
+    p.add_argument("--lat", type=finite, help="latitude, degrees (WGS 84, north positive)")
+    p.add_argument("--lon", type=finite, help="longitude, degrees (east positive)")
+    p.add_argument("--height-m", type=finite, help="height, metres (above mean sea level, "
                    "as a GPS shows it)")
     p.add_argument("--gps", metavar="URL", help="read NMEA GGA sentences from a GPS receiver "
                    "on a serial port or pyserial URL (sim://gps?... simulates one)")
     p.add_argument("--fixes", type=count, default=5, help="GPS fixes to average (default 5)")
     p.add_argument("--baud", type=int, default=4800, help="GPS baud rate (default 4800)")
-    p.add_argument("--timeout", type=float, default=30.0,
+    p.add_argument("--timeout", type=finite, default=30.0,
                    help="seconds to wait for each GPS fix (default 30)")
     p.set_defaults(runner="rigkit.commands.session_position_run:run_set_position")
 

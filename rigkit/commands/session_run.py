@@ -164,8 +164,8 @@ def run_show(args: argparse.Namespace) -> int:
         with changing(args.session, "show", wait_s=0.0) as session:
             pass
     except InputError as exc:  # busy, read-only or hostile: say why, show it as it is
+        session = load_session(args.session)  # one that cannot be read says only that
         print(f"warning: not repaired: {exc}", file=sys.stderr)
-        session = load_session(args.session)
     if args.json:
         print(json.dumps(_show_data(session), indent=2))
     else:

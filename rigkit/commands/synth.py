@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rigkit.commands import finite
+
 EXAMPLE = """example:
   rigkit synth out/scene-7 --seed 7                      # paper protocol, 4608x3456, 6 deg, 300 m
   rigkit synth out/small --seed 1 --width 1152 --height 864
@@ -36,20 +38,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rig", type=Path, help="rig profile YAML: image size, f, baselines, offset")
     p.add_argument("--width", type=int, help="image width, px (default 4608)")
     p.add_argument("--height", type=int, help="image height, px (default 3456)")
-    p.add_argument("--fov", type=float, help="horizontal field of view, degrees (default 6)")
-    p.add_argument("--distance", type=float, default=300.0, help="scene distance, m")
-    p.add_argument("--baseline-lr", type=float, help="left-right baseline C_lr, m (default 2)")
-    p.add_argument("--baseline-lb", type=float, help="left-back distance C_lb, m (default 2)")
-    p.add_argument("--back-up", type=float, help="back camera raised by, m (default 0.3)")
-    p.add_argument("--back-side", type=float, help="back camera offset right, m (default 0)")
-    p.add_argument("--max-tilt", type=float, default=1.0, help="max x/y rotation, degrees")
-    p.add_argument("--max-roll", type=float, default=5.0, help="max z rotation, degrees")
-    p.add_argument("--max-pp-offset", type=float, default=30.0, help="principal point offset, px")
+    p.add_argument("--fov", type=finite, help="horizontal field of view, degrees (default 6)")
+    p.add_argument("--distance", type=finite, default=300.0, help="scene distance, m")
+    p.add_argument("--baseline-lr", type=finite, help="left-right baseline C_lr, m (default 2)")
+    p.add_argument("--baseline-lb", type=finite, help="left-back distance C_lb, m (default 2)")
+    p.add_argument("--back-up", type=finite, help="back camera raised by, m (default 0.3)")
+    p.add_argument("--back-side", type=finite, help="back camera offset right, m (default 0)")
+    p.add_argument("--max-tilt", type=finite, default=1.0, help="max x/y rotation, degrees")
+    p.add_argument("--max-roll", type=finite, default=5.0, help="max z rotation, degrees")
+    p.add_argument("--max-pp-offset", type=finite, default=30.0, help="principal point offset, px")
     p.add_argument("--one-camera", action="store_true",
                    help="one camera moved between the positions: the three views share "
                    "one principal point (default: three cameras, one each)")
-    p.add_argument("--relief", type=float, default=0.03, help="terrain depth range / distance")
-    p.add_argument("--noise", type=float, default=1.5, help="read noise sigma, 8-bit DN")
+    p.add_argument("--relief", type=finite, default=0.03, help="terrain depth range / distance")
+    p.add_argument("--noise", type=finite, default=1.5, help="read noise sigma, 8-bit DN")
     field = p.add_argument_group(
         "field conditions",
         "what a real capture adds; --field turns on a realistic set (sky 0.25, haze 1500 m, "
@@ -57,18 +59,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         "each flag below overrides it",
     )
     field.add_argument("--field", action="store_true", help="a realistic field capture")
-    field.add_argument("--sky", type=float, help="fraction of the height above the skyline")
-    field.add_argument("--haze", type=float, help="haze extinction length, m (0 = clear)")
-    field.add_argument("--gain-jitter", type=float, help="per-camera gain difference (fraction)")
-    field.add_argument("--offset-jitter", type=float, help="per-frame black-level offset, DN")
-    field.add_argument("--vignetting", type=float, help="brightness lost at the corner (fraction)")
-    field.add_argument("--shimmer", type=float, help="heat shimmer, RMS px per axis")
-    field.add_argument("--shimmer-corr", type=float, help="shimmer correlation length, px")
+    field.add_argument("--sky", type=finite, help="fraction of the height above the skyline")
+    field.add_argument("--haze", type=finite, help="haze extinction length, m (0 = clear)")
+    field.add_argument("--gain-jitter", type=finite, help="per-camera gain difference (fraction)")
+    field.add_argument("--offset-jitter", type=finite, help="per-frame black-level offset, DN")
+    field.add_argument("--vignetting", type=finite, help="brightness lost at the corner (fraction)")
+    field.add_argument("--shimmer", type=finite, help="heat shimmer, RMS px per axis")
+    field.add_argument("--shimmer-corr", type=finite, help="shimmer correlation length, px")
     field.add_argument("--shimmer-spectrum", choices=SHIMMER_SPECTRA,
                        help="shimmer spectrum: gaussian (one correlation length, the "
                        "default), fine (half its variance 8 times finer) or vonkarman (power "
                        "law with an outer scale; docs/synthetic-scenes.md)")
-    field.add_argument("--shimmer-outer", type=float, metavar="PX",
+    field.add_argument("--shimmer-outer", type=finite, metavar="PX",
                        help="vonkarman outer scale, px (default 1500)")
     field.add_argument("--distortion", metavar="K1[,K2[,P1,P2[,K3]]]",
                        help="lens distortion (OpenCV model, normalised coordinates), all views")
@@ -83,7 +85,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="cars and people, placed anew in each view")
     world.add_argument("--shadows", type=int, metavar="N",
                        help="cloud shadows drifting between captures")
-    world.add_argument("--shadow-drift", type=float, metavar="M",
+    world.add_argument("--shadow-drift", type=finite, metavar="M",
                        help="cloud shadow drift between two captures, m (default 6)")
     world.add_argument("--facades", type=int, metavar="N",
                        help="building facades: periodic windows and plain walls, alternately")
@@ -94,7 +96,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write a capture session (raw/, session.yaml, rig.yaml) with "
                    "simulated laser targets, ready for `rigkit process`")
     p.add_argument("--targets", type=int, default=5, help="laser targets in a --session")
-    p.add_argument("--laser-noise", type=float, default=0.05,
+    p.add_argument("--laser-noise", type=finite, default=0.05,
                    help="simulated laser noise sigma, m (--session)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(runner="rigkit.commands.synth_run:run")

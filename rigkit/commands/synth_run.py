@@ -111,6 +111,10 @@ def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
     return replace(params, **changes)
 
 
+MAX_TARGETS = 1000
+"""The most laser targets a synthetic session gets (each is a line of session.yaml)."""
+
+
 def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
     """Render ``scene`` as a scene folder or a session; what was written, in words."""
     from rigkit.errors import InputError
@@ -119,8 +123,9 @@ def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
     if args.session:
         from rigkit.synth.session import write_synthetic_session
 
-        if args.targets < 0 or args.laser_noise < 0:
-            raise InputError("--targets and --laser-noise must not be negative")
+        if not 0 <= args.targets <= MAX_TARGETS or args.laser_noise < 0:
+            raise InputError(f"--targets must be 0 to {MAX_TARGETS} and --laser-noise must "
+                             "not be negative")
         session = write_synthetic_session(
             scene, args.out_dir, n_targets=args.targets, laser_sigma_m=args.laser_noise,
             seed=args.seed, progress=progress,

@@ -25,7 +25,7 @@ import os
 import secrets
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import BinaryIO
 
@@ -93,6 +93,28 @@ def check_writable_folder(folder: Path, what: str) -> None:
         raise InputError(f"{what}: cannot create {folder} ({exc.strerror})") from None
     if not os.access(folder, os.W_OK | os.X_OK):
         raise InputError(f"{what}: cannot write in {folder} (permission denied or read-only)")
+
+
+def replaced_entry(path: Path) -> str:
+    """The folder entry that writing ``path`` replaces: its folder with every link
+    resolved, and its own name as it is (a write renames a new file over that name, so
+    a link there is replaced, not followed)."""
+    path = Path(path)
+    return os.path.join(os.path.realpath(path.parent), path.name)
+
+
+def check_not_inputs(outputs: Iterable[Path], inputs: Iterable[Path], what: str) -> None:
+    """InputError naming ``what`` where writing one of ``outputs`` would replace one of
+    ``inputs``, before any work: a command never writes over a file it reads. An
+    input's data lies at its real path (every link resolved), which is what a write of
+    the same entry would destroy; another hard link to it keeps the old data, since
+    writes rename a new file into place."""
+    read = {os.path.realpath(p): Path(p) for p in inputs}
+    for out in outputs:
+        source = read.get(replaced_entry(out))
+        if source is not None:
+            raise InputError(f"{what}: writing {out} would replace the input {source}; "
+                             "choose another name")
 
 
 def check_free_space(folder: Path, needed_bytes: int, what: str) -> None:

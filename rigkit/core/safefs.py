@@ -67,6 +67,17 @@ def read_regular(path: Path) -> bytes:
         return handle.read()
 
 
+def check_regular(path: Path) -> None:
+    """InputError where ``path`` exists and is no regular file (:func:`open_regular`'s
+    rule): said before long work that will append to it, not after its results."""
+    try:
+        info = os.lstat(path)
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(info.st_mode):
+        raise refusal(path, kind_of(info.st_mode))
+
+
 def real_folder(path: Path, create: bool = False) -> Path:
     """``path`` if it is a real folder (not a link to one; made first with ``create``);
     InputError naming it otherwise. FileNotFoundError where it is missing and not made."""

@@ -45,9 +45,37 @@ def read_strict_yaml(path: Path, what: str, max_bytes: int = MAX_YAML_BYTES) -> 
         raise InputError(f"{path}: not valid YAML: {problem}{where}") from None
     except yaml.YAMLError as exc:
         raise InputError(f"{path}: not valid YAML: {exc}") from None
+    except RecursionError:  # the parser recurses once per level
+        data = _TOO_DEEP
     if data is None:
         raise InputError(f"{path}: the {what} is empty")
+    if data is _TOO_DEEP or _depth(data) > MAX_YAML_DEPTH:
+        raise InputError(f"{path}: not a {what}: lists or mappings nested more than "
+                         f"{MAX_YAML_DEPTH} deep")
     return data
+
+
+MAX_YAML_DEPTH = 32
+"""The deepest nesting of lists and mappings rigkit reads (its files need 5 or 6):
+deeper, a file of a few KB could exhaust Python's recursion in whatever walks it."""
+_TOO_DEEP = object()
+
+
+def _depth(data: Any) -> int:
+    """How deep lists and mappings nest in ``data`` (0: a scalar), without recursion."""
+    deepest, level = 0, [(data, 0)]
+    while level:
+        value, depth = level.pop()
+        children = (value.values() if isinstance(value, dict)
+                    else value if isinstance(value, list) else None)
+        if children is None:
+            deepest = max(deepest, depth)
+            continue
+        deepest = max(deepest, depth + 1)
+        if deepest > MAX_YAML_DEPTH:
+            return deepest
+        level.extend((child, depth + 1) for child in children)
+    return deepest
 
 
 def _read_bounded(path: Path, what: str, max_bytes: int) -> str:

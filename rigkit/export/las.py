@@ -19,6 +19,7 @@ import laspy
 import numpy as np
 
 from rigkit import __version__
+from rigkit.errors import InputError
 from rigkit.export.points import PointChunk
 
 POINT_FORMAT = 7
@@ -32,7 +33,8 @@ def las_scale(extent_m: float) -> float:
     for scale in SCALES_M:
         if extent_m / scale < _INT32 * 0.99:
             return scale
-    raise ValueError(f"points {extent_m:g} m from the origin do not fit a LAS file")
+    raise InputError(f"points {extent_m:g} m from the origin do not fit a LAS file "
+                     "(a depth map of that reach is no estimate of rigkit's); export PLY")
 
 
 def las_header(offset: tuple[float, float, float], extent_m: float, crs: Any | None,

@@ -25,7 +25,7 @@ from rigkit.errors import InputError
 from rigkit.export.georef import MAX_RESIDUAL_DEG, Georeference, georeference
 from rigkit.export.las import LasWriter, las_header
 from rigkit.export.ply import PlyWriter
-from rigkit.export.points import count_points, estimated, point_chunks
+from rigkit.export.points import count_points, estimated, point_chunks, row_blocks
 from rigkit.export.source import DepthMap, open_depth
 from rigkit.export.tiff import write_tiff
 
@@ -143,7 +143,9 @@ def _writer(path: Path, fmt: str, count: int, source: DepthMap,
 def _reach_m(source: DepthMap) -> float:
     """How far from the camera the farthest point can be, metres: the largest depth
     times the longest ray (the image corner's), plus a margin for the map's curvature."""
-    deepest = float(np.nanmax(source.depth))  # counted points exist: not all NaN
+    depth = source.depth
+    deepest = max((float(depth[rows][estimated(depth[rows])].max(initial=0.0))
+                   for rows in row_blocks(depth.shape, 1)), default=0.0)
     width, height = source.size
     corner = math.hypot(max(source.cx, width - source.cx), max(source.cy, height - source.cy))
     return deepest * math.hypot(1.0, corner / source.f) * 1.01 + 10.0

@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from rigkit.capture.session import RESULTS_DIR, Session, is_session, load_session
+from rigkit.core.safefs import check_regular, real_folder
 from rigkit.errors import InputError
 
 
@@ -73,6 +74,9 @@ def session_depth(path: Path) -> DepthMap:
     results = path / RESULTS_DIR
     if not (results / "depth.npy").is_file():
         raise InputError(f"{path}: no results yet; run `rigkit process {path}` first")
+    real_folder(results)  # the session's own: no link leads the export elsewhere
+    for name in ("depth.npy", "sigma.npy", "grey.png", "depth.json"):
+        check_regular(results / name)
     run_id = _meta(results / "depth.json").get("run_id")
     arrays = _maps(results / "depth.npy", results / "sigma.npy", results / "grey.png",
                    f"rigkit process {path}")

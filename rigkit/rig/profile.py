@@ -46,7 +46,7 @@ FOCAL_AGREEMENT = 0.001
 _MAX_BASELINE_M = 100.0
 _MIN_BASELINE_M = 0.01
 _MAX_OFFSET_M = 10.0
-_MAX_RANGE_M = 100_000.0
+MAX_RANGE_M = 100_000.0
 _MAX_BAUD = 4_000_000
 _PROTOCOL_PATTERN = re.compile(r"[a-z0-9][a-z0-9_-]*")
 AZIMUTH_REFERENCES = ("true", "magnetic")
@@ -360,7 +360,7 @@ def _azimuth_reference(keys: dict[str, Any], key: KeyPath) -> dict[str, Any]:
 
 
 def _max_range(value: Any, key: KeyPath) -> float:
-    return key.bounded(value, "m", _MAX_RANGE_M, low=1.0)
+    return key.bounded(value, "m", MAX_RANGE_M, low=1.0)
 
 
 def _rangefinder_offset(value: Any, key: KeyPath) -> tuple[float, float, float]:
@@ -389,7 +389,7 @@ def _pipeline(value: Any, key: KeyPath) -> Mapping[str, float]:
 
 
 def _nominal_range(value: Any, key: KeyPath) -> float:
-    return key.bounded(value, "m", _MAX_RANGE_M)
+    return key.bounded(value, "m", MAX_RANGE_M)
 
 
 # --------------------------------------------------------------------------- writing

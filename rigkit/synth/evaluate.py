@@ -26,6 +26,7 @@ may stay empty (issue 35's bar for the town scenes is set on these pixels).
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields, replace
@@ -35,6 +36,7 @@ import cv2
 import numpy as np
 
 from rigkit.capture import RESULTS_DIR
+from rigkit.core.files import write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
 from rigkit.pipeline.settings import PipelineSettings
@@ -343,14 +345,24 @@ def _csv_row(m: Metrics, with_changes: bool) -> dict[str, object]:
 
 def write_csv(rows: Sequence[Metrics], path: Path) -> None:
     """The table as CSV: one row per scene, the change scores as more columns when any
-    scene has them."""
+    scene has them; written whole or not at all (:func:`rigkit.core.files.write_text`)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with_changes = any(m.changes is not None for m in rows)
     table = [_csv_row(m, with_changes) for m in rows]
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(table[0]))
-        writer.writeheader()
-        writer.writerows(table)
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(table[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(table)
+    write_text(path, buffer.getvalue())
+
+
+def files_read(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[Path]:
+    """The files an evaluation keeps as they are: every file in each scene folder
+    (whether the evaluation reads it or not) and each scene's estimate (the first of
+    its candidates that exists)."""
+    found = [f for d in scene_dirs if Path(d).is_dir() for f in Path(d).rglob("*")]
+    found += [e for d in scene_dirs if (e := find_estimate(depth_dir, Path(d))) is not None]
+    return found
 
 
 GOAL_UNDER_1 = 0.95  # share of judged pixels under 1 % error

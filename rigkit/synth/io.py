@@ -18,6 +18,7 @@ Layout of ``SCENE_DIR/`` (documented in docs/synthetic-scenes.md)::
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
@@ -61,10 +62,54 @@ def frame_name(view: str, frame: int) -> str:
     return f"{view}.png" if frame == 0 else f"{view}-{frame + 1}.png"
 
 
+SCENE_FORMAT = "rigkit-synthetic-scene/1"
+_WRITTEN = re.compile(r"(left|right|back)(-[0-9]+)?\.png|scene\.yaml|ground_truth")
+"""The names :func:`write_scene` writes in a scene folder."""
+
+
+def check_out_folder(out_dir: Path, new: bool = False) -> None:
+    """InputError unless a rendering may go into ``out_dir``, checked before anything is
+    written there: a folder that is missing or empty, or (unless ``new``) a scene folder
+    rendered before, holding nothing but what a rendering writes (its ``scene.yaml``
+    says so), whose files the new rendering replaces. A folder holding anything else is
+    someone's: nothing in it is written over."""
+    out_dir = Path(out_dir)
+    if not out_dir.exists():
+        return
+    if not out_dir.is_dir():
+        raise InputError(f"{out_dir}: a file, not a folder; give a new or empty folder")
+    names = sorted(p.name for p in out_dir.iterdir())
+    if not names:
+        return
+    shown = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+    if new:
+        raise InputError(f"{out_dir}: holds files already ({shown}); a synthetic session "
+                         "is written into a new or empty folder")
+    foreign = [n for n in names if not _WRITTEN.fullmatch(n)]
+    truth = out_dir / "ground_truth"
+    if (foreign or not _is_rendered(out_dir / SCENE_FILE)
+            or truth.is_symlink() or (truth.exists() and not truth.is_dir())):
+        raise InputError(f"{out_dir}: holds files that are no scene rendered by rigkit synth "
+                         f"({shown}); give a new or empty folder")
+
+
+def _is_rendered(meta: Path) -> bool:
+    """Whether ``meta`` is a regular file that :func:`write_scene` wrote (its format)."""
+    if meta.is_symlink() or not meta.is_file():
+        return False
+    try:
+        data = read_strict_yaml(meta, "scene description")
+    except InputError:
+        return False
+    return isinstance(data, dict) and data.get("format") == SCENE_FORMAT
+
+
 def write_scene(
     scene: Scene, out_dir: Path, progress: Callable[[str, float], None] | None = None
 ) -> dict[str, float]:
-    """Render all three views of ``scene`` into ``out_dir``. Returns seconds per view."""
+    """Render all three views of ``scene`` into ``out_dir`` (:func:`check_out_folder`
+    first). Returns seconds per view."""
+    check_out_folder(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "ground_truth").mkdir(exist_ok=True)
     timings: dict[str, float] = {}
@@ -86,7 +131,7 @@ def write_scene(
         write_npy(truth / MOVED_FILE, moved_left(scene, left.surface, left.depth))
         write_npy(truth / SHADOW_FILE, shadow_changed_left(scene, left.depth))
     meta = {
-        "format": "rigkit-synthetic-scene/1",
+        "format": SCENE_FORMAT,
         "seed": scene.seed,
         "focal_px": scene.params.focal_px,
         "baseline_lr_m": scene.params.baseline_lr_m,
@@ -118,7 +163,7 @@ class SceneTruth:
         p = self.path / "ground_truth" / f"depth_{view}.npy"
         if not p.is_file():
             raise InputError(f"{self.path}: missing ground truth {p.name}")
-        return np.load(p)
+        return _truth(p, np.floating, 2)
 
     def changes(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(moved, shadow_changed), each (H, W) bool over the left view
@@ -126,13 +171,13 @@ class SceneTruth:
         folder = self.path / "ground_truth"
         if not (folder / MOVED_FILE).is_file():
             return None
-        return np.load(folder / MOVED_FILE), np.load(folder / SHADOW_FILE)
+        return _truth(folder / MOVED_FILE, np.bool_, 2), _truth(folder / SHADOW_FILE, np.bool_, 2)
 
     def flat(self) -> np.ndarray | None:
         """(H, W) bool, left pixels whose surface has no texture (:meth:`Layers.flat`),
         or None for a scene folder written before rigkit recorded them."""
         path = self.path / "ground_truth" / FLAT_FILE
-        return np.load(path) if path.is_file() else None
+        return _truth(path, np.bool_, 2) if path.is_file() else None
 
     def image_path(self, view: str) -> Path:
         """The rendered image; in a synthetic session it lives in ``raw/``."""
@@ -155,6 +200,22 @@ def _params(values: dict) -> SynthParams:
     if "distortion" in kw:
         kw["distortion"] = distortion_coefficients(kw["distortion"])
     return SynthParams(**kw)
+
+
+def _truth(path: Path, kind: type, ndim: int) -> np.ndarray:
+    """A ground-truth array of ``kind`` (a NumPy scalar type) and ``ndim`` dimensions;
+    InputError naming the file where it is none."""
+    try:
+        array = np.load(path)
+    except FileNotFoundError:
+        raise InputError(f"{path}: missing ground truth") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a NumPy array file ({exc})") from None
+    if not isinstance(array, np.ndarray) or array.ndim != ndim \
+            or not np.issubdtype(array.dtype, kind):
+        raise InputError(f"{path}: not ground truth as rigkit synth writes it "
+                         f"({getattr(array, 'dtype', '?')}, {getattr(array, 'ndim', '?')} axes)")
+    return array
 
 
 def load_scene(path: str | Path) -> SceneTruth:

@@ -49,6 +49,9 @@ from rigkit.synth.shimmer import SPECTRA
 BACKDROPS = ("terrain", "void")
 
 
+MAX_SIDE_PX = 16384
+"""The widest and tallest image synth renders (a 16 MP frame is 4608 px wide)."""
+
 @dataclass(frozen=True)
 class SynthParams:
     """Everything ``rigkit synth`` can set. Angles in degrees, lengths in metres."""
@@ -91,9 +94,10 @@ class SynthParams:
     backdrop: str = "terrain"
 
     def validate(self) -> None:
+        """InputError naming the first parameter out of its range."""
         checks = {
-            "width": self.width >= 64,
-            "height": self.height >= 48,
+            "width": 64 <= self.width <= MAX_SIDE_PX,
+            "height": 48 <= self.height <= MAX_SIDE_PX,
             "hfov_deg": 0.1 < self.hfov_deg < 60,
             "distance_m": self.distance_m > 0,
             "baseline_lr_m": self.baseline_lr_m > 0,

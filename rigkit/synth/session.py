@@ -26,7 +26,7 @@ from rigkit.capture import (
 from rigkit.core.files import write_text
 from rigkit.core.yamlfile import dump_yaml
 from rigkit.synth.evaluate import visible_in_right
-from rigkit.synth.io import VIEWS, frame_name, load_scene, write_scene
+from rigkit.synth.io import VIEWS, check_out_folder, frame_name, load_scene, write_scene
 from rigkit.synth.scene import Scene
 
 RIG_FILE = "rig.yaml"
@@ -106,7 +106,9 @@ def write_synthetic_session(
     seed: int = 0,
     progress: Callable[[str, float], None] | None = None,
 ) -> Session:
-    """Render ``scene`` into ``out_dir`` as a session with ``n_targets`` laser targets."""
+    """Render ``scene`` into ``out_dir`` (missing or empty) as a session with
+    ``n_targets`` laser targets."""
+    check_out_folder(out_dir, new=True)
     write_scene(scene, out_dir, progress)
     return session_from_rendered(
         scene, out_dir, n_targets=n_targets, laser_sigma_m=laser_sigma_m, seed=seed

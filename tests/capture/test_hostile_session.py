@@ -230,3 +230,49 @@ def test_a_session_whose_path_is_not_utf8_is_processed(
     session = copy_session(small_session, folder)
     assert main(["process", str(session), "--quiet"]) == 0  # once a SIGSEGV in OpenCV
     assert (session / "results" / "depth.npy").is_file()
+
+
+def test_a_log_that_is_a_link_fails_its_session_before_the_work(
+    processed_session: Path, small_session: Path, tmp_path: Path, outside: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Said before the run, not after it replaced the results; the next session is
+    processed all the same."""
+    bad = copy_session(processed_session, tmp_path, "bad")
+    results = {p.name: p.read_bytes() for p in (bad / "results").iterdir()}
+    (bad / "history.log").unlink()
+    (bad / "history.log").symlink_to(outside)
+    good = copy_session(small_session, tmp_path, "good")
+    assert main(["process", str(bad), str(good), "--jobs", "1"]) == 1
+    out = capsys.readouterr().out
+    assert "1 processed, 1 failed" in out and "history.log: is a symbolic link" in out
+    assert {p.name: p.read_bytes() for p in (bad / "results").iterdir()} == results
+    assert (good / "results" / "depth.npy").is_file()
+    assert outside.read_text() == "do not touch\n"
+
+
+@pytest.mark.parametrize("name", ["depth.npy", "depth.json"])
+def test_results_that_are_links_are_not_exported(
+    processed_session: Path, tmp_path: Path, name: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(processed_session, tmp_path)
+    elsewhere = tmp_path / f"elsewhere-{name}"
+    (session / "results" / name).rename(elsewhere)
+    (session / "results" / name).symlink_to(elsewhere)
+    assert main(["export", str(session), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"results/{name}: is a symbolic link" in err and len(err.strip().splitlines()) == 1
+    assert not list((tmp_path / "out").glob("*.ply")) if (tmp_path / "out").exists() else True
+
+
+def test_a_frame_name_with_a_control_character_is_refused(
+    session: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def nul(data: dict) -> None:
+        left = data["frames"]["left"]
+        (left[0] if isinstance(left, list) else left)["file"] = "raw/left.png\0.txt"
+
+    _edit(session, nul)
+    assert main(["session", "show", str(session)]) == 2
+    err = capsys.readouterr().err
+    assert "must be a file name without control characters" in err and "Traceback" not in err

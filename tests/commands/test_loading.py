@@ -127,8 +127,10 @@ def test_what_help_repeats_is_what_the_library_has() -> None:
     from rigkit.rangefinder.sim import SIM_OPTIONS
     from rigkit.rig.budget import DISPARITY_ERROR_PX
     from rigkit.rig.bursts import SHIMMER_PX
+    from rigkit.rig.profile import MAX_RANGE_M
 
     assert rig.DISPARITY_ERROR_PX == DISPARITY_ERROR_PX
+    assert rig.MAX_RANGE_M == MAX_RANGE_M
     assert rig.SHIMMER_PX == SHIMMER_PX
     assert list(rangefinder.DEFAULT_BAUDS) == list(PROTOCOLS)
     assert list(rangefinder.DEFAULT_BAUDS.items()) == [

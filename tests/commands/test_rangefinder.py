@@ -231,3 +231,27 @@ def test_simulate_then_read_from_another_process(capsys: pytest.CaptureFixture[s
         _, err = process.communicate(timeout=10)
     assert process.returncode == 0, err
     assert f"try: rigkit rangefinder read --port {path}" in err
+
+
+def test_log_appends_to_nothing_but_a_log_of_readings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An image or the raw log given as --output is refused before the port opens and
+    keeps its bytes; a log whose last line was cut short gets its next reading on a line
+    of its own."""
+    photo = tmp_path / "photo.png"
+    photo.write_bytes(b"\x89PNG\r\n\x1a\n")
+    code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(photo)],
+                       capsys)
+    assert code == 2 and "holds something other than readings" in error_line(err)
+    assert photo.read_bytes() == b"\x89PNG\r\n\x1a\n"
+    same = tmp_path / "both.jsonl"
+    code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(same),
+                        "--raw-log", str(same)], capsys)
+    assert code == 2 and "also --raw-log" in error_line(err) and not same.exists()
+    log = tmp_path / "laser.jsonl"
+    log.write_text('{"slope_distance_m": 300.0}\n{"slope_dist')  # stopped mid-line
+    code, _, _ = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(log)], capsys)
+    lines = log.read_text(encoding="utf-8").splitlines()
+    assert code == 0 and len(lines) == 3 and lines[1] == '{"slope_dist'
+    assert json.loads(lines[2])["slope_distance_m"] == pytest.approx(302.0)

@@ -113,3 +113,28 @@ def test_recovery_after_an_interrupted_swap(tmp_path: Path, crash: str) -> None:
     # The next swap starts from a clean folder.
     replace_folder(tmp_path, "results", {"a.txt": "new"}, "run3")
     assert (tmp_path / "results" / "a.txt").read_text() == "new"
+
+
+def test_an_output_may_not_replace_an_input(tmp_path: Path) -> None:
+    """The same entry, or the entry an input's links lead to, is refused; a link at the
+    output's name, or another hard link to the input, is not (a write renames a new
+    file over the name, and the input's data stays where it is)."""
+    from rigkit.core.files import check_not_inputs
+    from rigkit.errors import InputError
+
+    frame = tmp_path / "frame.png"
+    frame.write_bytes(b"captured")
+    (tmp_path / "shots").mkdir()
+    via = tmp_path / "shots" / "via.png"
+    via.symlink_to(frame)
+    folder_link = tmp_path / "same"
+    folder_link.symlink_to(tmp_path)
+    for out, given in ((frame, frame), (frame, via), (folder_link / "frame.png", frame)):
+        with pytest.raises(InputError, match="would replace the input"):
+            check_not_inputs([tmp_path / "other.npy", out], [given], "--out")
+    hard = tmp_path / "hard.png"
+    os.link(frame, hard)
+    check_not_inputs([via, hard], [frame], "--out")
+    write_together(tmp_path, {"hard.png": b"new"})
+    write_together(tmp_path / "shots", {"via.png": b"new"})
+    assert frame.read_bytes() == b"captured"

@@ -114,6 +114,25 @@ def test_a_depth_map_file_from_rigkit_depth(tmp_path: Path) -> None:
     assert old["x"] == pytest.approx((20 - 199.5) / 4000.0 * depth[0, 20], rel=1e-6)
 
 
+def test_infinite_depths_are_no_points_and_a_reach_las_cannot_hold_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A map that no run of rigkit's wrote: +-inf are left out as NaN is; depths beyond
+    what LAS's 32-bit coordinates hold at 1 m are refused for LAS, not a traceback."""
+    depth = depth_plane()
+    depth[100:110, :] = np.inf
+    depth[120, :] = -np.inf
+    session = new_session(tmp_path, depth=depth)
+    done = export_path(session, tmp_path / "out", ["ply", "las"])
+    assert done.points == int(np.isfinite(depth).sum())
+    depth[50, 50] = 1e13
+    far = new_session(tmp_path, "far", depth=depth)
+    assert main(["export", str(far), "--out", str(tmp_path / "far-out"), "--format",
+                 "las", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "do not fit a LAS file" in err and len(err.splitlines()) == 1
+
+
 def test_a_failure_leaves_no_partial_output(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

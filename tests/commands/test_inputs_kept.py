@@ -1,0 +1,177 @@
+"""A command never writes over what it reads, nor over files it did not make: outputs
+named after an input, a profile written into a session, a table written onto a scene's
+own files, a rendering into someone's folder. Each is refused in one line before any
+work, exit status 2, and every input keeps its bytes."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rigkit.cli import main
+from rigkit.synth import SceneTruth
+from tests.conftest import copy_session
+
+
+def _digests(*paths: Path) -> dict[Path, str]:
+    return {p: hashlib.sha256(p.read_bytes()).hexdigest() for p in paths}
+
+
+@pytest.fixture
+def frames(scene_dir: Path, tmp_path: Path) -> list[Path]:
+    """A private copy of the shared scene's three PNGs."""
+    out = []
+    for view in ("left", "right", "back"):
+        out.append(tmp_path / f"{view}.png")
+        shutil.copy(scene_dir / f"{view}.png", out[-1])
+    return out
+
+
+def _depth(frames: list[Path], truth: SceneTruth, out: Path, *more: str) -> int:
+    return main(["depth", *map(str, frames), "--out", str(out), "--quiet", "--focal-px",
+                 str(truth.focal_px), "--baseline-lr", "2", "--baseline-lb", "2", *more])
+
+
+@pytest.mark.parametrize("out, more", [
+    ("left.npy", ["--preview"]),   # its preview would be left.png
+    ("back.npy", ["--preview"]),
+    ("right.grey.npy", []),        # not a preview: its grey image would be right.grey.png
+])
+def test_depth_outputs_named_after_an_input_are_refused(
+    frames: list[Path], truth: SceneTruth, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    out: str, more: list[str],
+) -> None:
+    if out == "right.grey.npy":  # an input whose name an output shares
+        frames[1] = frames[1].rename(tmp_path / "right.grey.grey.png")
+    before = _digests(*frames)
+    assert _depth(frames, truth, tmp_path / out, *more) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "would replace the input" in err
+    assert _digests(*frames) == before
+    assert not (tmp_path / out).exists()
+
+
+def test_an_input_reached_through_a_link_is_kept(
+    frames: list[Path], truth: SceneTruth, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The left frame given by a link elsewhere: the output named after the file the
+    link leads to would destroy it."""
+    shots = tmp_path / "shots"
+    shots.mkdir()
+    linked = shots / "l.png"
+    linked.symlink_to(frames[0])
+    before = _digests(frames[0])
+    assert _depth([linked, *frames[1:]], truth, tmp_path / "left.npy", "--preview") == 2
+    assert "would replace the input" in capsys.readouterr().err
+    assert _digests(frames[0]) == before
+
+
+def test_an_output_that_is_a_link_to_an_input_replaces_the_link_only(
+    frames: list[Path], truth: SceneTruth, tmp_path: Path
+) -> None:
+    """A write renames a new file over the name: a link there is replaced, and the frame
+    it pointed to keeps its bytes, so the run goes ahead."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "d.grey.png").symlink_to(frames[0])
+    before = _digests(*frames)
+    assert _depth(frames, truth, out / "d.npy") == 0
+    assert not (out / "d.grey.png").is_symlink()
+    assert _digests(*frames) == before
+
+
+def test_eval_csv_onto_the_scene_is_refused(scene_dir: Path, scene_depth: tuple[int, Path, str],
+                                           tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                           ) -> None:
+    scene = tmp_path / scene_dir.name
+    shutil.copytree(scene_dir, scene)
+    estimates = tmp_path / "est"
+    estimates.mkdir()
+    shutil.copy(scene_depth[1] / "d.npy", estimates / f"{scene.name}.npy")
+    kept = _digests(*[p for p in scene.rglob("*") if p.is_file()], estimates / f"{scene.name}.npy")
+    for csv in (scene / "scene.yaml", scene / "ground_truth" / "depth_left.npy",
+                estimates / f"{scene.name}.npy"):
+        assert main(["eval", str(scene), "--depth-dir", str(estimates), "--csv", str(csv)]) == 2
+        err = capsys.readouterr().err
+        assert "expected a .csv file name" in err
+    named = scene / "ground_truth" / "notes.csv"
+    named.write_text("kept\n")  # a scene folder's files are kept, read or not
+    assert main(["eval", str(scene), "--depth-dir", str(estimates), "--csv", str(named)]) == 2
+    assert "would replace the input" in capsys.readouterr().err
+    assert named.read_text() == "kept\n"
+    table = scene / "eval.csv"  # a new file there is no input
+    assert main(["eval", str(scene), "--depth-dir", str(estimates), "--csv", str(table)]) == 0
+    assert table.read_text().startswith("scene,")
+    assert _digests(*kept) == kept
+
+
+def test_rig_calibrate_writes_no_profile_into_a_session(
+    processed_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(processed_session, tmp_path)
+    before = _digests(*[p for p in session.rglob("*") if p.is_file()])
+    for out in (session / "session.yaml", session / "calibrated.yaml",
+                session / "raw" / "rig.yml"):
+        assert main(["rig", "calibrate", str(session), "--out", str(out), "--force"]) == 2
+        err = capsys.readouterr().err
+        assert "kept as captured" in err and len(err.strip().splitlines()) == 1
+    assert main(["rig", "calibrate", str(session), "--out", str(tmp_path / "x.txt")]) == 2
+    assert "expected a .yaml file name" in capsys.readouterr().err
+    assert _digests(*before) == before
+
+
+def _render(out: Path, *more: str) -> int:
+    return main(["synth", str(out), "--width", "160", "--height", "120", "--quiet", *more])
+
+
+def test_synth_renders_over_nothing_it_did_not_make(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "left.png").write_bytes(b"a photo")
+    (mine / "scene.yaml").write_text("mine: 1\n")
+    assert _render(mine) == 2
+    assert "no scene rendered by rigkit synth" in capsys.readouterr().err
+    assert (mine / "left.png").read_bytes() == b"a photo"
+    assert sorted(p.name for p in mine.iterdir()) == ["left.png", "scene.yaml"]
+
+    scene = tmp_path / "scene"
+    assert _render(scene, "--seed", "1") == 0
+    first = (scene / "left.png").read_bytes()
+    assert _render(scene, "--seed", "2") == 0  # a scene of its own: rendered again
+    assert (scene / "left.png").read_bytes() != first
+    (scene / "notes.txt").write_text("mine\n")
+    assert _render(scene, "--seed", "3") == 2
+    capsys.readouterr()
+
+    session = tmp_path / "session"
+    assert _render(session, "--session", "--targets", "2") == 0
+    kept = _digests(*[p for p in session.rglob("*") if p.is_file()])
+    for more in (["--session"], []):
+        assert _render(session, "--seed", "4", *more) == 2
+        assert "new or empty folder" in capsys.readouterr().err
+    assert _digests(*kept) == kept
+
+
+@pytest.mark.parametrize("flag", ["--noise", "--distance", "--fov"])
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
+def test_a_number_flag_takes_no_nan_or_infinity(tmp_path: Path, flag: str, value: str,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as stop:
+        _render(tmp_path / "s", f"{flag}={value}")
+    assert stop.value.code == 2
+    assert f"argument {flag}: must be a finite number" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
+def test_synth_refuses_an_image_it_could_not_render(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["synth", str(tmp_path / "s"), "--width", "100000", "--quiet"]) == 2
+    assert "width=100000 is out of range" in capsys.readouterr().err
+    assert main(["synth", str(tmp_path / "t"), "--session", "--targets", "100000",
+                 "--width", "160", "--height", "120", "--quiet"]) == 2
+    assert "--targets must be 0 to 1000" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists() and not (tmp_path / "t").exists()
