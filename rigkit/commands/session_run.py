@@ -158,6 +158,7 @@ def run_remove_frame(args: argparse.Namespace) -> int:
 def run_show(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
     from rigkit.capture.actions import changing
+    from rigkit.core.tables import visible
     from rigkit.errors import InputError
 
     try:  # repair what an interrupted command left, where the session can be changed
@@ -169,7 +170,7 @@ def run_show(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(_show_data(session), indent=2))
     else:
-        print(_show_text(session))
+        print(visible(_show_text(session)))
     return 0
 
 

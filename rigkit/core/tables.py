@@ -68,3 +68,14 @@ def render_table(
     while lines and not lines[-1].strip():
         lines.pop()
     return "\n".join(line if line.strip() else "" for line in lines)
+
+
+_CONTROL = {c: f"\\x{c:02x}" for c in (*range(32), 127) if chr(c) not in "\n\t"}
+
+
+def visible(text: str) -> str:
+    """``text`` with every control character but newline and tab written out as
+    ``\\xNN``: what a session from someone else holds (a note, an operator's name) is
+    shown, not obeyed by the terminal (an escape sequence could redraw the screen,
+    hide lines or retitle the window)."""
+    return text.translate(_CONTROL)

@@ -276,3 +276,13 @@ def test_a_frame_name_with_a_control_character_is_refused(
     assert main(["session", "show", str(session)]) == 2
     err = capsys.readouterr().err
     assert "must be a file name without control characters" in err and "Traceback" not in err
+
+
+def test_escape_sequences_in_a_note_are_shown_not_obeyed(
+    session: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _edit(session, lambda data: data.update(notes="clear\x1b[2J\x1b[Hdone",
+                                            operator="\x1b]0;x\x07"))
+    assert main(["session", "show", str(session)]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "\x07" not in out and "clear\\x1b[2J\\x1b[Hdone" in out

@@ -36,3 +36,10 @@ def test_no_trailing_spaces_and_no_terminal_codes() -> None:
     text = render_table(["a", "b"], [["x", ""], ["[bold]y[/bold]", "2"]], left=[0, 1])
     assert all(line == line.rstrip() for line in text.splitlines())
     assert "[bold]y[/bold]" in text and "\x1b" not in text  # cells are not markup
+
+
+def test_visible_writes_out_control_characters_but_lines_and_tabs() -> None:
+    from rigkit.core.tables import visible
+
+    assert visible("note\x1b]0;owned\x07\x1b[2J end\nnext\tcol\x7f") == (
+        "note\\x1b]0;owned\\x07\\x1b[2J end\nnext\tcol\\x7f")
