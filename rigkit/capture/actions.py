@@ -45,7 +45,7 @@ from rigkit.capture.session import (
     utc_now,
 )
 from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
-from rigkit.core.safefs import real_folder
+from rigkit.core.safefs import real_folder, require_file
 from rigkit.errors import InputError
 from rigkit.rangefinder.ranging import max_range_m
 from rigkit.rig.profile import load_rig, rig_to_dict
@@ -149,8 +149,7 @@ def check_frame_file(session: Session, position: str, source: Path) -> None:
     that is not a frame of the session's rig (:func:`check_before_copy`)."""
     if position not in POSITIONS:
         raise InputError(f"position {position!r}: expected one of {', '.join(POSITIONS)}")
-    if not source.is_file():
-        raise InputError(f"{source}: no such file")
+    require_file(source)
     rig = session.rig()
     check_before_copy(source, rig.image_size, f"the rig profile {rig.name} is for",
                       raw=is_raw(source))

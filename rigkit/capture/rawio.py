@@ -32,6 +32,7 @@ from rigkit.capture.imagesize import check_size, header_size
 from rigkit.capture.picture import picture_problem
 from rigkit.core.chatter import captured_stderr
 from rigkit.core.files import write_png
+from rigkit.core.safefs import require_file
 from rigkit.errors import InputError
 from rigkit.pipeline.images import check_decoder_output, decode_grey, read_image_file
 
@@ -143,7 +144,7 @@ def decode_raw(path: str | Path, expected: tuple[int, int] | None = None,
     import rawpy
 
     path = Path(path)
-    _require_file(path)
+    require_file(path)
     _check_raw_container(path)
     try:
         with captured_stderr() as chatter, _open_raw(path) as raw:
@@ -296,7 +297,7 @@ def frame_size(path: str | Path) -> tuple[int, int]:
     if not is_raw(path):
         grey = _read_plain_grey(path)
         return grey.shape[1], grey.shape[0]
-    _require_file(path)
+    require_file(path)
     _check_raw_container(path)
     try:
         with captured_stderr(), _open_raw(path) as raw:
@@ -344,13 +345,6 @@ def to_pipeline(grey_frames: Sequence[np.ndarray], linear: bool, overwrite: bool
 
 
 # --- helpers -------------------------------------------------------------------------
-
-
-def _require_file(path: Path) -> None:
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if not path.is_file():
-        raise InputError(f"{path}: not a file")
 
 
 def _libraw_reason(exc: Exception) -> str:

@@ -18,7 +18,7 @@ from rigkit.rig.findings import Finding
 
 def run_calibrate(args: argparse.Namespace) -> int:
     """``rigkit rig calibrate``: 0 when the profile is written."""
-    from rigkit.core.files import replaced_entry, write_text
+    from rigkit.core.files import check_writable_folder, replaced_entry, write_text
     from rigkit.errors import InputError
     from rigkit.reporting.scale import LASER_ACCURACY_M, format_calibration, sessions_targets
     from rigkit.rig.calibration import calibrated_profile, fit_scale
@@ -34,6 +34,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                              "rigs/NAME.yaml")
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out}: exists; give --force to overwrite it")
+    check_writable_folder(args.out.parent, f"--out {args.out}")
     accuracy = args.laser_sigma_m or LASER_ACCURACY_M
     profile, targets = sessions_targets(args.sessions, accuracy)
     fit = fit_scale(targets, profile)

@@ -67,6 +67,19 @@ def read_regular(path: Path) -> bytes:
         return handle.read()
 
 
+def require_file(path: Path) -> None:
+    """InputError naming ``path``, a file the user named (links followed), unless it is
+    a regular file: "no such file", or what it is instead (a folder, a FIFO, a device)."""
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(f"{path}: is {kind_of(info.st_mode)}, not a file")
+
+
 def check_regular(path: Path) -> None:
     """InputError where ``path`` exists and is no regular file (:func:`open_regular`'s
     rule): said before long work that will append to it, not after its results."""

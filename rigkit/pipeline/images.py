@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from rigkit.core.chatter import attributed, captured_stderr
+from rigkit.core.safefs import require_file
 from rigkit.errors import InputError
 
 _CUT_SHORT = re.compile(r"premature end|unexpected end|data corrupted|read error|"
@@ -41,8 +42,7 @@ def read_image_file(path: Path) -> bytes:
     """The bytes of the file at ``path``, read with Python's own I/O, so that no file name
     reaches OpenCV's C++ (a name that is not UTF-8, such as one holding the byte 0xff,
     crashes its imread). InputError naming the file when it is missing or not a file."""
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    require_file(path)
     return path.read_bytes()
 
 

@@ -133,7 +133,7 @@ def parse_decimal(text: str, what: str) -> float:
     and decimals. Python's ``float`` also takes "1e300", "3_0_2.00", "inf" and "nan",
     which no rangefinder sends: FrameError naming ``what`` for those."""
     if not _DECIMAL.fullmatch(text.strip()):
-        raise FrameError(f"{what} {text!r} is not a number")
+        raise FrameError(f"{what} {text!r} is not a number in digits (such as 312.40)")
     return float(text)
 
 
