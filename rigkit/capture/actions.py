@@ -216,7 +216,10 @@ def repair_session(path: Path) -> None:
     done = path / RESULTS_DIR / LOG_NAME
     if not done.is_file():
         return
-    rows = read_rows(done)
+    try:
+        rows = read_rows(done)
+    except InputError:  # derived and damaged: the next run replaces it; it blocks nothing
+        return
     log = path / LOG_NAME
     logged = {row.run_id for row in read_rows(log)} if log.is_file() else set()
     missing = [row for row in rows if row.run_id not in logged]

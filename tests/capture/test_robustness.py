@@ -313,6 +313,20 @@ def test_rows_lost_between_the_swap_and_the_log_are_appended(processed_session: 
     assert "repair" in (copy / "history.log").read_text()
 
 
+def test_a_damaged_copy_of_the_rows_in_results_blocks_nothing(
+    processed_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """results/ is derived: a garbled comparisons.csv there is replaced by the next run,
+    not a session that can no longer be processed."""
+    copy = copy_session(processed_session, tmp_path)
+    logged = (copy / LOG_NAME).read_bytes()
+    (copy / "results" / LOG_NAME).write_text("garbage,,,\n")
+    assert main(["process", str(copy)]) == 0
+    assert "1 processed, 0 failed" in capsys.readouterr().out
+    assert read_rows(copy / "results" / LOG_NAME)
+    assert (copy / LOG_NAME).read_bytes().startswith(logged)
+
+
 # --------------------------------------------------------------------------- 16, 17: paths
 
 
