@@ -22,9 +22,10 @@ and written atomically, so the file is always either the old or the new version)
 from __future__ import annotations
 
 import json
+import os
 import re
 import statistics
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from functools import cached_property
@@ -38,7 +39,7 @@ from rigkit.capture.tripod import (
     tripod_from_data,
     tripod_to_data,
 )
-from rigkit.core.files import append_whole, write_text
+from rigkit.core.files import append_whole, replaced_entry, write_text
 from rigkit.core.safefs import read_regular, refusal
 from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
@@ -214,6 +215,18 @@ class Session:
 
 def is_session(path: Path) -> bool:
     return (path / SESSION_FILE).is_file()
+
+
+def check_outside(out: Path, sessions: Iterable[Path], what: str) -> None:
+    """InputError naming ``what`` where ``out`` (a file or folder a command is to write)
+    lies inside one of ``sessions``, links resolved: what a session holds is written by
+    rigkit's session commands alone (a report's comparisons.csv there would replace the
+    session's log, a profile its session.yaml)."""
+    entry = Path(replaced_entry(out))
+    for session in sessions:
+        if entry.is_relative_to(os.path.realpath(session)):
+            raise InputError(f"{what}: inside the session {session}, whose files are kept as "
+                             "captured; write it elsewhere")
 
 
 def load_session(path: str | Path) -> Session:

@@ -36,6 +36,10 @@ def run(args: argparse.Namespace) -> int:
     rows = collect(args.sessions, all_runs=args.all_runs, torn=torn)
     for problem in torn:
         print(f"warning: {problem}", file=sys.stderr)
+    if not rows:
+        raise InputError(f"no comparisons in {', '.join(map(str, args.sessions))} (an empty "
+                         "log, or every row damaged): nothing to report; rigkit process a "
+                         "session with laser targets first")
     text = format_text(rows, summarize(rows))
     notes = [(path, session_scale_note(path)) for path in dict.fromkeys(args.sessions)]
     text += "".join(f"scale of {path}: {note}\n" for path, note in notes if note)
@@ -51,16 +55,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check_out(out: Path, sessions: list[Path]) -> None:
-    """--out must be a folder (or not exist yet) and never a session folder: its
+    """--out must be a folder (or not exist yet) and never inside a session: its
     comparisons.csv would replace the session's log."""
+    from rigkit.capture.session import check_outside
     from rigkit.errors import InputError
 
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
-    target = out.resolve()
-    for session in sessions:
-        if session.resolve() == target:
-            raise InputError(f"--out {out}: is a session folder (its log would be replaced)")
+    check_outside(out / "comparisons.csv", sessions, f"--out {out}")
 
 
 def _write_all(out: Path, files: dict[str, str | bytes]) -> None:

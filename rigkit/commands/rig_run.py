@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -18,7 +17,8 @@ from rigkit.rig.findings import Finding
 
 def run_calibrate(args: argparse.Namespace) -> int:
     """``rigkit rig calibrate``: 0 when the profile is written."""
-    from rigkit.core.files import check_writable_folder, replaced_entry, write_text
+    from rigkit.capture.session import check_outside
+    from rigkit.core.files import check_writable_folder, write_text
     from rigkit.errors import InputError
     from rigkit.reporting.scale import LASER_ACCURACY_M, format_calibration, sessions_targets
     from rigkit.rig.calibration import calibrated_profile, fit_scale
@@ -26,12 +26,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     if args.out.suffix.lower() not in (".yaml", ".yml"):
         raise InputError(f"--out {args.out}: expected a .yaml file name for the profile")
-    entry = Path(replaced_entry(args.out))
-    for session in args.sessions:  # what was captured is kept as it was
-        if entry.is_relative_to(os.path.realpath(session)):
-            raise InputError(f"--out {args.out}: inside the session {session}, whose files "
-                             "are kept as captured; write the profile elsewhere, e.g. "
-                             "rigs/NAME.yaml")
+    check_outside(args.out, args.sessions, f"--out {args.out}")
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out}: exists; give --force to overwrite it")
     check_writable_folder(args.out.parent, f"--out {args.out}")

@@ -44,14 +44,24 @@ def test_report_command_all_runs(main, two_runs: Path, tmp_path: Path) -> None:
     assert len(read_rows(out / "comparisons.csv")) == 6
 
 
+def _empty_log(session: Path) -> Path:
+    """A folder beside ``session`` whose log holds its header and nothing else."""
+    empty = session.parent / "empty"
+    empty.mkdir()
+    (empty / LOG_NAME).write_text(((session / LOG_NAME).read_text().splitlines()[0]) + "\n")
+    return empty
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
         (lambda s, t: [str(t / "missing")], "missing: no such session folder"),
         (lambda s, t: [], "no session folders given"),
-        (lambda s, t: [str(s), "--out", str(s)], "is a session folder"),
+        (lambda s, t: [str(s), "--out", str(s)], "inside the session"),
+        (lambda s, t: [str(s), "--out", str(s / "reports")], "inside the session"),
+        (lambda s, t: [str(_empty_log(s))], "no comparisons in"),
     ],
-    ids=["missing-session", "no-session", "out-is-session"],
+    ids=["missing-session", "no-session", "out-is-session", "out-in-session", "empty-log"],
 )
 def test_report_command_errors_are_one_line(
     main, two_runs: Path, tmp_path: Path, capsys, args, message
