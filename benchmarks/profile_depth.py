@@ -98,16 +98,29 @@ class RssSampler:
         return max((mb for t, mb in self.samples if t0 <= t <= t1), default=float("nan"))
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
+def depth_parser(description: str, out: str) -> argparse.ArgumentParser:
+    """The arguments of a ``rigkit depth`` run to measure: the three positions (a
+    comma-separated burst each, or one file), the rig's three numbers, and ``--out``
+    (default ``out``)."""
+    ap = argparse.ArgumentParser(description=description,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("left")
-    ap.add_argument("right")
-    ap.add_argument("back")
-    ap.add_argument("--focal-px", required=True)
-    ap.add_argument("--baseline-lr", required=True)
-    ap.add_argument("--baseline-lb", required=True)
-    ap.add_argument("--out", type=Path, default=Path("out/profile/depth.npy"))
+    for position in ("left", "right", "back"):
+        ap.add_argument(position)
+    for flag in ("--focal-px", "--baseline-lr", "--baseline-lb"):
+        ap.add_argument(flag, required=True)
+    ap.add_argument("--out", type=Path, default=Path(out))
+    return ap
+
+
+def depth_argv(args: argparse.Namespace) -> list[str]:
+    """The ``rigkit depth`` command line of :func:`depth_parser`'s ``args``, quiet."""
+    return ["depth", args.left, args.right, args.back, "--focal-px", args.focal_px,
+            "--baseline-lr", args.baseline_lr, "--baseline-lb", args.baseline_lb,
+            "--out", str(args.out), "--quiet"]
+
+
+def main() -> int:
+    ap = depth_parser(__doc__, "out/profile/depth.npy")
     ap.add_argument("--profile", type=int, default=0, metavar="N",
                     help="print cProfile's N costliest functions (default: no profile)")
     ap.add_argument("--repeat", type=int, default=1)
@@ -139,9 +152,7 @@ def main() -> int:
     if args.busy:
         _timed(depthrun, "load_capture", cpu_times, "load", time.process_time)
         _timed(files, "write_together", cpu_times, "write", time.process_time)
-    argv = ["depth", args.left, args.right, args.back, "--focal-px", args.focal_px,
-            "--baseline-lr", args.baseline_lr, "--baseline-lb", args.baseline_lb,
-            "--out", str(args.out), "--quiet"]
+    argv = depth_argv(args)
     header = (f"{'run':>3} {'import':>6} {'load':>5} "
               + " ".join(f"{s[:6]:>6}" for s in STAGES)
               + f" {'write':>5} {'other':>5} {'total':>6} {'peak MB':>7}")

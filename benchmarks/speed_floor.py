@@ -21,14 +21,14 @@ of threads (``tests/pipeline/test_determinism.py``). The imports are timed as a 
 
 from __future__ import annotations
 
-import argparse
 import subprocess
 import sys
 import time
 from collections import defaultdict
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
+
+from profile_depth import depth_argv, depth_parser  # the script beside this one
 
 KINDS = {
     "imdecode": "decoding the frames",
@@ -93,16 +93,8 @@ def import_seconds() -> float:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("left")
-    ap.add_argument("right")
-    ap.add_argument("back")
-    ap.add_argument("--focal-px", required=True)
-    ap.add_argument("--baseline-lr", required=True)
-    ap.add_argument("--baseline-lb", required=True)
+    ap = depth_parser(__doc__, "out/floor/depth.npy")
     ap.add_argument("--cores", type=int, default=2, help="cores the floor is for (default 2)")
-    ap.add_argument("--out", type=Path, default=Path("out/floor/depth.npy"))
     args = ap.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
 
@@ -112,9 +104,7 @@ def main() -> int:
     from rigkit.core.threads import limit_threads
 
     limit_threads(1)
-    argv = ["depth", args.left, args.right, args.back, "--focal-px", args.focal_px,
-            "--baseline-lr", args.baseline_lr, "--baseline-lb", args.baseline_lb,
-            "--out", str(args.out), "--quiet"]
+    argv = depth_argv(args)
     rigkit_main(argv)  # warms the file cache and the imports
     seconds, calls = count_opencv(cv2)
     cpu0, wall0 = time.process_time(), time.perf_counter()
