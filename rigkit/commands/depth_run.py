@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     read = [frame.path for frames in bursts.values() for frame in frames]
     check_not_inputs([args.out.parent / name for name in _output_names(args.out, args.preview)],
                      read + ([args.rig] if args.rig is not None else []), f"--out {args.out}")
-    task = args.left[0].name
+    task = args.left[0].name if args.left else "depth"  # no left frame: said by the run
     with Progress("depth", [task], quiet=args.quiet) as progress:
         run = run_depth(bursts, rig, force=args.force,
                         progress=lambda stage, f: progress.update(task, f, stage))

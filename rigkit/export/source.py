@@ -16,6 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from rigkit.capture.actions import stale_results
 from rigkit.capture.session import RESULTS_DIR, Session, is_session, load_session
 from rigkit.core.safefs import check_regular, real_folder
 from rigkit.errors import InputError
@@ -77,6 +78,9 @@ def session_depth(path: Path) -> DepthMap:
     real_folder(results)  # the session's own: no link leads the export elsewhere
     for name in ("depth.npy", "sigma.npy", "grey.png", "depth.json"):
         check_regular(results / name)
+    stale = stale_results(session, targets=False)  # a depth map of other frames or rig
+    if stale is not None:
+        raise InputError(f"{path}: {stale} (rigkit process {path}) before exporting")
     run_id = _meta(results / "depth.json").get("run_id")
     arrays = _maps(results / "depth.npy", results / "sigma.npy", results / "grey.png",
                    f"rigkit process {path}")

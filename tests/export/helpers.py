@@ -40,7 +40,8 @@ def write_results(session: Path, depth: np.ndarray, run_id: str = "20260412T0900
     np.save(results / "sigma.npy", (0.01 * depth).astype(np.float32))
     grey = (np.arange(depth.size) % 256).astype(np.uint8).reshape(depth.shape)
     cv2.imwrite(str(results / "grey.png"), grey)
-    (results / "depth.json").write_text(json.dumps({"run_id": run_id}))
+    frames = {pos: [] for pos in ("left", "right", "back")}  # the session's: none taken
+    (results / "depth.json").write_text(json.dumps({"run_id": run_id, "frames": frames}))
 
 
 def new_session(folder: Path, name: str = "geo", depth: np.ndarray | None = None) -> Path:

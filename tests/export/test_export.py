@@ -133,6 +133,18 @@ def test_infinite_depths_are_no_points_and_a_reach_las_cannot_hold_is_one_line(
     assert "do not fit a LAS file" in err and len(err.splitlines()) == 1
 
 
+def test_results_of_other_frames_are_not_exported(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """A depth map from frames the session no longer holds is no map of it."""
+    session = new_session(tmp_path)
+    meta = json.loads((session / "results" / "depth.json").read_text())
+    meta["frames"]["left"] = [{"file": "raw/left.png", "sha256": "0" * 64}]
+    (session / "results" / "depth.json").write_text(json.dumps(meta))
+    assert main(["export", str(session), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "before the frames changed" in err and len(err.splitlines()) == 1
+
+
 def test_a_failure_leaves_no_partial_output(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+from rigkit.batch import new_run_id, process_session
 from rigkit.capture import LaserReading, Session, Target, create_session, load_session
 from rigkit.capture.field import add_position_frame, frames_at, resume_step
 from rigkit.capture.positioning import set_field_step
@@ -65,6 +66,28 @@ async def test_reopened_at_processing_it_waits_to_be_asked(demo: Demo) -> None:
         await pilot.pause(0.3)
         assert "not processed yet; r: process" in text(app, "#stage")
     assert not (session.path / RESULTS_DIR).exists()
+
+
+@synchronous
+async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: Demo) -> None:
+    """The latest run is shown while frames and targets are as it had them; once a
+    target is added it is not (its table and verdict would be another capture's), and
+    the screen says why."""
+    session = framed(demo, "reopened")
+    set_field_step(session.path, "process")
+    process_session(session.path, new_run_id())
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
+        assert "targets within" in text(app, "#verdict")
+    late = Target(name="T2", pixel=(100.0, 100.0), window_px=9, readings=(READING,))
+    save_session(replace(load_session(session.path),
+                         targets=(*load_session(session.path).targets, late)))
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: "before the targets changed" in text(app, "#stage"),
+                       "why the run is not shown")
+        assert "process again" in text(app, "#stage") and text(app, "#verdict").strip() == ""
 
 
 def test_resume_step_never_opens_a_step_whose_frames_are_missing(demo: Demo) -> None:

@@ -17,7 +17,8 @@ from textual.worker import get_current_worker
 
 from rigkit.batch import new_run_id, process_session
 from rigkit.batch.session import stray_warnings
-from rigkit.capture import RESULTS_DIR, read_rows
+from rigkit.capture import RESULTS_DIR, frame_problems, read_rows
+from rigkit.capture.actions import stale_results
 from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
@@ -57,16 +58,33 @@ class ProcessScreen(ExportingScreen):
     def on_mount(self) -> None:
         table = self.query_one(DataTable)
         table.add_columns("target", "laser m", "depth m", "error", "≤1 %")
+        if not self.resume:
+            self.action_run()
+        else:  # reopened here: processing waits to be asked for
+            self.query_one("#stage", Static).update("reading the latest run ...")
+            self._resume()
+
+    @work(thread=True, exclusive=True, group="process")
+    def _resume(self) -> None:
+        """The latest run, shown only where it still shows the session: frames, rig and
+        targets as the run had them, and every frame there (what ``session show`` says of
+        it; the frames' hashes are read here, off the screen's thread)."""
         session = session_of(self)
         rows = latest_run(read_rows(session.path / "comparisons.csv")) \
             if (session.path / "comparisons.csv").is_file() else []
-        if not self.resume:
-            self.action_run()
-        elif rows and (session.path / RESULTS_DIR / "depth.npy").is_file():
-            self._show_results(rows)
-            self.query_one("#stage", Static).update("latest run shown; r: process again")
-        else:  # reopened here: processing waits to be asked for
-            self.query_one("#stage", Static).update("not processed yet; r: process")
+        if not rows or not (session.path / RESULTS_DIR / "depth.npy").is_file():
+            self.app.call_from_thread(self.query_one("#stage", Static).update,
+                                      "not processed yet; r: process")
+            return
+        why = stale_results(session) or "; ".join(frame_problems(session))
+        if get_current_worker().is_cancelled:  # r was pressed meanwhile: its run shows
+            return
+        if why:
+            self.app.call_from_thread(self._failed, f"{why}; r: process again")
+            return
+        self.app.call_from_thread(self._show_results, rows)
+        self.app.call_from_thread(self.query_one("#stage", Static).update,
+                                  "latest run shown; r: process again")
 
     def action_run(self) -> None:
         self.query_one("#stage", Static).update("processing ...")
@@ -104,7 +122,11 @@ class ProcessScreen(ExportingScreen):
         self.query_one(ProgressBar).update(progress=fraction)
 
     def _failed(self, message: str) -> None:
+        """The error, and no earlier run's table, verdict or depth left beside it."""
         self.query_one("#stage", Static).update(f"[b $error]✘ {escape(message)}[/]")
+        self.query_one(DataTable).clear()
+        self.query_one("#verdict", Static).update("")
+        self.query_one("#depth", Vertical).remove_children()
 
     def _show_results(self, rows: list[Comparison]) -> None:
         session = session_of(self)
