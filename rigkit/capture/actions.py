@@ -229,11 +229,10 @@ def repair_session(path: Path) -> None:
                   "to the comparisons log after an interrupted run")
 
 
-def stale_results(session: Session, targets: bool = True) -> str | None:
-    """Why ``results/`` no longer shows this session (frames, rig or, with
-    ``targets``, targets changed since the run that wrote it), or None. Without
-    ``targets``: whether its depth map is still this session's (the depth does not
-    depend on the targets)."""
+def stale_results(session: Session, with_targets: bool = True) -> str | None:
+    """Why ``results/`` no longer shows this session (frames, rig or, ``with_targets``,
+    targets changed since the run that wrote it), or None. Without the targets: whether
+    its depth map is still this session's (the depth does not depend on them)."""
     meta_path = session.path / RESULTS_DIR / "depth.json"
     if not meta_path.is_file():
         return None
@@ -253,7 +252,7 @@ def stale_results(session: Session, targets: bool = True) -> str | None:
            "baseline_lb_m": rig.baseline_lb_m, "one_camera": rig.one_camera}
     if any(used.get(key, value) != value for key, value in now.items()):
         return f"results/ are from run {run}, before the rig changed; process again"
-    if not targets:
+    if not with_targets:
         return None
     done = session.path / RESULTS_DIR / LOG_NAME
     rows = read_rows(done) if done.is_file() else []

@@ -78,7 +78,7 @@ def session_depth(path: Path) -> DepthMap:
     real_folder(results)  # the session's own: no link leads the export elsewhere
     for name in ("depth.npy", "sigma.npy", "grey.png", "depth.json"):
         check_regular(results / name)
-    stale = stale_results(session, targets=False)  # a depth map of other frames or rig
+    stale = stale_results(session, with_targets=False)  # a depth map of other frames or rig
     if stale is not None:
         raise InputError(f"{path}: {stale} (rigkit process {path}) before exporting")
     run_id = _meta(results / "depth.json").get("run_id")
