@@ -92,8 +92,9 @@ def burst_misfit(session: Session, position: str, path: Path) -> str | None:
     """Why the frame at ``path`` does not belong to ``position``'s burst, or None: the
     frames of a burst show one view, shifted a little by the tripod's sway, while a
     frame from another position shows the scene with parallax (the right one) or
-    magnified (the back one). None too for the first frame of a position, and for a
-    file that cannot be read (adding it says why)."""
+    magnified (the back one), and a frame of another scene does not match at all. None
+    too for the first frame of a position, and for a file that cannot be read (adding
+    it says why)."""
     frames = frames_at(session, position)
     if not frames:
         return None
@@ -102,10 +103,14 @@ def burst_misfit(session: Session, position: str, path: Path) -> str | None:
         grey = load_linear_grey(path, cache, file_sha256(path), session.rig().image_size)
         new = reduced(to_pipeline([grey], linear=is_raw(path), overwrite=True)[0])[0]
         first = check_frame(session, frames[0])
-        view = map_views(first.image, new, first.reduction, session.rig().focal_px,
-                         reference(session, frames[0]))
     except RigkitError:
         return None
+    try:  # a frame that cannot be matched with the burst's is none of it
+        view = map_views(first.image, new, first.reduction, session.rig().focal_px,
+                         reference(session, frames[0]))
+    except RigkitError as exc:
+        return (f"{path.name} does not match the {position} burst ({exc}): it looks like "
+                "another view")
     moved = view.parallax is not None and view.parallax.moved
     if not moved and abs(view.scale - 1.0) <= MAX_BURST_SCALE_CHANGE:
         return None

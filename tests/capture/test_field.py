@@ -16,6 +16,7 @@ from rigkit.capture import create_session, load_session
 from rigkit.capture.field import (
     add_position_frame,
     back_checks,
+    burst_misfit,
     exif_check,
     frames_at,
     next_step,
@@ -198,6 +199,17 @@ def test_a_second_frame_joins_the_burst(tmp_path: Path) -> None:
     # Two unrelated views: the shimmer cannot be measured, which is said, not failed.
     shimmer = next(c for c in onsite_checks(session, "left") if c.code == "shimmer")
     assert shimmer.ok and shimmer.message.startswith("heat shimmer not measured: left frames")
+
+
+def test_a_frame_that_cannot_be_matched_with_the_burst_is_none_of_it(tmp_path: Path) -> None:
+    """Before: a frame the burst's first could not be matched with (another scene) was
+    taken into the burst with a tick, since "could not compare" counted as "belongs"."""
+    session = add_position_frame(new_session(tmp_path), "left",
+                                 _png(tmp_path / "one.png", texture(seed=1)))
+    swayed = _png(tmp_path / "swayed.png", similarity(texture(seed=1), 1.0, 0.0, (1.5, -1.0)))
+    assert burst_misfit(session, "left", swayed) is None
+    other = burst_misfit(session, "left", _png(tmp_path / "other.png", texture(seed=2)))
+    assert other is not None and other.startswith("other.png does not match the left burst")
 
 
 def test_a_retake_after_a_failed_check_replaces_the_position(tmp_path: Path) -> None:
