@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -14,7 +15,12 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.core.progress import Progress
     from rigkit.errors import InputError
 
-    paths = list(dict.fromkeys(args.sessions))
+    # One session named twice (a link to it, ./s and s/) is processed once: twice in
+    # one run, the second would find it locked by the first and say it failed.
+    named: dict[str, Path] = {}
+    for path in args.sessions:
+        named.setdefault(os.path.realpath(path), path)
+    paths = list(named.values())
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs {args.jobs}: expected at least 1")
     where, process = _runner(args, paths)

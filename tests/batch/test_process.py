@@ -159,6 +159,19 @@ def test_parallel_batch(small_session: Path, tmp_path: Path) -> None:
     assert len(run_ids) == 1
 
 
+def test_one_session_named_twice_is_processed_once(small_session: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """Before: a session given directly and by a link ran twice at once, and the second
+    found it locked by the first and said it failed (in its history too)."""
+    session = copy_session(small_session, tmp_path, "s")
+    (tmp_path / "link").symlink_to(session)
+    assert main(["process", str(session), str(tmp_path / "link"), f"{session}/",
+                 "--jobs", "2", "--quiet"]) == 0
+    out = capsys.readouterr()
+    assert "1 processed, 0 failed" in out.out and "1 session(s)" in out.err
+    assert "FAILED" not in (session / "history.log").read_text()
+
+
 def test_jobs_follow_memory_and_cores(synth_session: Path) -> None:
     paths = [synth_session] * 8
     assert auto_jobs(paths, available_bytes=10**8) == 1
