@@ -15,7 +15,13 @@ from rigkit.capture.field import add_position_frame, frames_at
 from rigkit.synth.demo import Demo
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
-from rigkit.tui.screens import PositionScreen, ProcessScreen, RigScreen, TargetsScreen
+from rigkit.tui.screens import (
+    PositionScreen,
+    ProcessScreen,
+    RigScreen,
+    StartScreen,
+    TargetsScreen,
+)
 from rigkit.tui.widgets import PixelView
 from tests.tui.conftest import SETTLE_S, synchronous, text, wait_for, write_frame
 
@@ -219,6 +225,24 @@ async def test_start_screen_opens_a_session_or_starts_one(demo: Demo) -> None:
         await pilot.press("down", "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "ridge-9 opened")
         assert app.session is not None and app.session.name == "ridge-9"
+
+
+@synchronous
+async def test_sessions_are_listed_by_folder_and_a_broken_one_says_why(demo: Demo) -> None:
+    """Before: copies of one session were six rows of one name, a folder name was read
+    as markup, and a broken session said "unreadable" and nothing more."""
+    shutil.copytree(demo.session, demo.capture / "copy[b]x")
+    broken = demo.capture / "broken"
+    shutil.copytree(demo.session, broken)
+    (broken / "session.yaml").write_text("format: nothing\n")
+    app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
+    async with app.run_test(size=SIZE) as pilot:
+        table = app.screen.query_one("#sessions")
+        names = [str(table.get_row_at(i)[0]) for i in range(table.row_count)]
+        assert names == ["broken", "copy[b]x", demo.session.name]
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: "session.yaml" in text(app, "#message"), "why")
+        assert isinstance(app.screen, StartScreen)
 
 
 @synchronous

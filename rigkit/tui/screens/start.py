@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
@@ -39,14 +40,15 @@ class StartScreen(Screen[None]):
         table.add_columns("session", "resumes at", "frames", "targets")
         capture = host(self).config.capture
         folders = sorted(p for p in capture.iterdir() if is_session(p)) if capture.is_dir() else []
-        for folder in folders:
+        for folder in folders:  # named by folder, as on the card (copies share a name)
+            name = Text(folder.name)  # as it is, never read as markup
             try:
                 session = load_session(folder)
             except RigkitError:  # opening it shows why
-                table.add_row(folder.name, "unreadable", "", "", key=str(folder))
+                table.add_row(name, "unreadable: Enter says why", "", "", key=str(folder))
                 continue
             frames = sum(len(frames_at(session, p)) for p in ("left", "right", "back"))
-            table.add_row(session.name, resume_step(session), str(frames),
+            table.add_row(name, resume_step(session), str(frames),
                           str(len(session.targets)), key=str(folder))
 
     def key_escape(self) -> None:
