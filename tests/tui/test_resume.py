@@ -90,6 +90,28 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
         assert "process again" in text(app, "#stage") and text(app, "#verdict").strip() == ""
 
 
+@synchronous
+async def test_a_verdict_longer_than_its_box_scrolls_rather_than_hides(demo: Demo) -> None:
+    """Before: the verdict box clipped at 6 lines, and the warnings, written last (a
+    reading far from the others: a typo?), were the lines an 80x24 screen never showed."""
+    session = framed(demo, "long-verdict")
+    typo = replace(READING, slope_distance_m=2000.0)
+    targets = tuple(Target(name=f"T{i}", pixel=(60.0 + 40 * i, 140.0), window_px=9,
+                           readings=(READING, READING, typo)) for i in range(1, 5))
+    save_session(replace(load_session(session.path), targets=targets))
+    set_field_step(session.path, "process")
+    process_session(session.path, new_run_id())
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
+        assert text(app, "#verdict").count("is far from the others") == 4
+        box = app.screen.query_one("#verdict-box")
+        assert box.max_scroll_y > 0  # the rest is a scroll away, with a scrollbar
+        box.scroll_end(animate=False)
+        await pilot.pause(0.1)
+        assert box.scroll_y == box.max_scroll_y
+
+
 def test_resume_step_never_opens_a_step_whose_frames_are_missing(demo: Demo) -> None:
     session = create_session(demo.capture / "bare", demo.rig)
     assert resume_step(session) == "rig"  # never opened, nothing taken

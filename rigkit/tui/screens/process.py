@@ -11,7 +11,7 @@ from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
 from textual.worker import get_current_worker
 
@@ -47,12 +47,14 @@ class ProcessScreen(ExportingScreen):
 
     def compose(self) -> ComposeResult:
         yield Header()
-        yield Static("", id="stage")
+        with VerticalScroll(id="stage-box"):  # more than fits scrolls, never cut off
+            yield Static("", id="stage")
         yield ProgressBar(total=1.0, show_eta=False, id="progress")
         with Horizontal():
             yield Vertical(id="depth")
             yield DataTable(id="rows", cursor_type="none")
-        yield Static("", id="verdict")
+        with VerticalScroll(id="verdict-box"):
+            yield Static("", id="verdict")
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
