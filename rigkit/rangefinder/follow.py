@@ -13,13 +13,23 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from rigkit.errors import InputError
-from rigkit.rangefinder.driver import PortError, Rangefinder, ReadTimeout, open_rangefinder
+from rigkit.rangefinder.driver import (
+    LineStats,
+    PortError,
+    Rangefinder,
+    ReadTimeout,
+    open_rangefinder,
+)
 from rigkit.rangefinder.framing import RangefinderError, Reading
 
 POLL_S = 0.5
 """Longest wait for a reading before ``stopped`` is checked again, seconds."""
 RETRY_S = 2.0
 """Wait between attempts to reopen a lost port, seconds."""
+QUIET_S = 10.0
+"""Seconds without a reading after which what did arrive is said (as ``rangefinder
+read`` says it): frames that never parse are a wrong protocol or a damaged line, not a
+working link."""
 
 
 @dataclass(frozen=True)
@@ -37,12 +47,14 @@ def follow(
     stopped: Callable[[], bool],
     poll_s: float = POLL_S,
     retry_s: float = RETRY_S,
+    quiet_s: float = QUIET_S,
     opener: Callable[[str, str], Rangefinder] | None = None,
 ) -> Iterator[Reading | LinkStatus]:
     """Yield readings from ``url`` and a :class:`LinkStatus` whenever the link changes,
     until ``stopped()`` is true. Errors other than a lost or unopenable port (a device
     refusing a request, a bad frame) are reported as a status and reading goes on; bad
-    settings (an unknown protocol) are reported once and end it."""
+    settings (an unknown protocol) are reported once and end it. Every ``quiet_s``
+    seconds without a reading, a status says what arrived meanwhile."""
     open_port = opener or (lambda u, p: open_rangefinder(u, p, timeout=poll_s))
     while not stopped():
         try:
@@ -56,23 +68,39 @@ def follow(
             return
         yield LinkStatus(True, f"connected to {url} ({protocol})")
         with device:
-            yield from _readings(device, stopped, poll_s)
+            yield from _readings(device, stopped, poll_s, quiet_s)
         if not stopped():
             _sleep(retry_s, stopped)
 
 
-def _readings(device: Rangefinder, stopped: Callable[[], bool], poll_s: float
-              ) -> Iterator[Reading | LinkStatus]:
+def _readings(device: Rangefinder, stopped: Callable[[], bool], poll_s: float,
+              quiet_s: float) -> Iterator[Reading | LinkStatus]:
+    before, since = device.stats, time.monotonic()
     while not stopped():
         try:
-            yield device.read(timeout=poll_s)
+            reading = device.read(timeout=poll_s)
         except ReadTimeout:
+            if time.monotonic() - since >= quiet_s:
+                yield LinkStatus(True, _quiet_note(device, device.stats.since(before), quiet_s))
+                before, since = device.stats, time.monotonic()
             continue
         except PortError as exc:
             yield LinkStatus(False, f"{exc}; reconnecting")
             return
         except RangefinderError as exc:
             yield LinkStatus(True, str(exc))
+        else:
+            yield reading
+            before, since = device.stats, time.monotonic()
+
+
+def _quiet_note(device: Rangefinder, seen: LineStats, quiet_s: float) -> str:
+    """What arrived in ``quiet_s`` seconds without a reading, and what it suggests."""
+    if seen.frames:
+        return (f"no reading in {quiet_s:g} s ({seen.describe()}): not "
+                f"{device.protocol.name}? (check the protocol, the cable and the baud rate)")
+    return (f"connected; nothing received in {quiet_s:g} s (fire the laser; if it was "
+            "fired, check the cable and the baud rate)")
 
 
 def _sleep(seconds: float, stopped: Callable[[], bool]) -> None:

@@ -68,3 +68,19 @@ def test_an_unknown_protocol_is_reported_once() -> None:
     items = list(follow("sim://trupulse", "morse", stopped=lambda: False))
     assert len(items) == 1 and not items[0].connected  # type: ignore[union-attr]
     assert "morse" in items[0].message  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("options, said", [
+    ("bad_checksum=1&interval=0.05", "bad checksums): not trupulse?"),
+    ("silent=1", "connected; nothing received in 0.6 s (fire the laser"),
+])
+def test_a_link_that_gives_no_reading_says_what_arrives(options: str, said: str) -> None:
+    """Before: frames that never parsed (or nothing at all) left "connected" standing
+    for as long as the operator waited."""
+    items: list[Reading | LinkStatus] = []
+    for item in follow(f"sim://trupulse?{options}", stopped=lambda: len(items) >= 3,
+                       poll_s=0.2, retry_s=0.05, quiet_s=0.6):
+        items.append(item)
+    notes = [i.message for i in items[1:] if isinstance(i, LinkStatus)]
+    assert notes and all(said in note for note in notes)
+    assert not any(isinstance(i, Reading) for i in items)
