@@ -212,6 +212,23 @@ def test_a_frame_that_cannot_be_matched_with_the_burst_is_none_of_it(tmp_path: P
     assert other is not None and other.startswith("other.png does not match the left burst")
 
 
+def test_add_frame_burst_refuses_a_frame_of_another_view(tmp_path: Path, capsys) -> None:
+    """The command line holds a burst to what the TUI does (before: exit 0)."""
+    from rigkit.cli import main
+
+    session = add_position_frame(new_session(tmp_path), "left",
+                                 _png(tmp_path / "one.png", texture(seed=1)))
+    other = _png(tmp_path / "other.png", texture(seed=2))
+    assert main(["session", "add-frame", str(session.path), "--position", "left", "--burst",
+                 str(other)]) == 2
+    assert "other.png does not match the left burst" in capsys.readouterr().err
+    assert len(frames_at(load_session(session.path), "left")) == 1
+    swayed = _png(tmp_path / "swayed.png", similarity(texture(seed=1), 1.0, 0.0, (1.5, -1.0)))
+    assert main(["session", "add-frame", str(session.path), "--position", "left", "--burst",
+                 str(swayed)]) == 0
+    assert len(frames_at(load_session(session.path), "left")) == 2
+
+
 def test_a_retake_after_a_failed_check_replaces_the_position(tmp_path: Path) -> None:
     session = new_session(tmp_path)
     left = _png(tmp_path / "a.png", texture(seed=1))
