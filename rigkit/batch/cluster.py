@@ -69,6 +69,9 @@ def _check_scheduler(scheduler: str) -> None:
         raise InputError(f"--scheduler {scheduler}: no Dask scheduler answered within "
                          f"{CONNECT_TIMEOUT_S:g} s; is `dask scheduler` running there?"
                          ) from None
+    except MemoryError:  # its bytes read as the length of a message no machine holds
+        raise InputError(f"--scheduler {scheduler}: answers with bytes that are no Dask "
+                         "message; is this a Dask scheduler's port?") from None
     except Exception as exc:  # refused, unreachable, or bytes that are no Dask message
         raise InputError(f"--scheduler {scheduler}: cannot reach the scheduler "
                          f"({type(exc).__name__}: {exc}); is `dask scheduler` running there?"

@@ -179,7 +179,7 @@ def utm_epsg(lat_deg: float, lon_deg: float) -> int:
     (the zone by longitude alone, without Norway's and Svalbard's exceptions, which is as
     exact a projection there); InputError outside UTM's 80 S to 84 N."""
     if not -80.0 <= lat_deg <= 84.0:
-        raise InputError(f"latitude {lat_deg:g}: UTM covers 80 S to 84 N only")
+        raise InputError(f"latitude {lat_deg:.7g}: UTM covers 80 S to 84 N only")
     zone = min(int((lon_deg + 180.0) // 6.0) + 1, 60)
     return (32600 if lat_deg >= 0 else 32700) + zone
 
