@@ -120,8 +120,9 @@ MAX_YAML_VALUES = 1_000_000
 
 
 _SAFE_LOADER: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-"""libyaml's parser where PyYAML was built with it (its wheels are): a session of
-thousands of readings parses in a fraction of a second instead of ~15 s in Python."""
+"""libyaml's parser where PyYAML was built with it (its wheels are): ``session show``
+of a 3.7 MB session (25 000 targets) took 9.8 s instead of 18 with PyYAML's Python
+parser."""
 
 
 class _StrictLoader(_SAFE_LOADER):
