@@ -42,6 +42,10 @@ _NOT_FILL = re.compile(rb"[^\xff]")
 _WIDTH, _HEIGHT = 256, 257
 """The TIFF tags ImageWidth and ImageLength."""
 
+_SUBFILE_TYPE, _DNG_VERSION = 254, 50706
+"""The TIFF tags NewSubfileType (bit 0: a reduced-resolution copy of another image) and
+DNGVersion (the file is a DNG, a camera RAW)."""
+
 _TIFF_SIZE_TYPES = {3: "H", 4: "I", 16: "Q"}
 """TIFF field types a width or height may have (SHORT, LONG, LONG8) and their struct codes."""
 
@@ -134,6 +138,9 @@ def _tiff_size(data: bytes) -> tuple[int, int]:
     """The ImageWidth and ImageLength of the first directory of a classic TIFF or a
     BigTIFF (version 43: 8-byte offsets and entry count, 20-byte entries)."""
     order = "<" if data[:2] == b"II" else ">"
+    if data[8:10] == b"CR":  # Canon's CR2 mark after the header
+        raise _Unreadable("is a Canon CR2's (a camera RAW): give the file its .cr2 name, "
+                          "so that its RAW data is read and not its preview")
     (version,) = struct.unpack_from(order + "H", data, 2)
     offset_at, offset_code, count_code, entry_code = _TIFF_LAYOUTS[version]
     if version == 43 and struct.unpack_from(order + "HH", data, 4) != (8, 0):
@@ -145,11 +152,18 @@ def _tiff_size(data: bytes) -> tuple[int, int]:
                           f"{MAX_TIFF_ENTRIES:,} rigkit reads")
     entry = struct.Struct(order + entry_code)
     entries = first + struct.calcsize(order + count_code)
-    found: dict[int, list[int]] = {_WIDTH: [], _HEIGHT: []}
+    found: dict[int, list[int]] = {_WIDTH: [], _HEIGHT: [], _SUBFILE_TYPE: []}
     for index in range(count):
         tag, kind, n, value = entry.unpack_from(data, entries + index * entry.size)
+        if tag == _DNG_VERSION:
+            raise _Unreadable("is a DNG's (a camera RAW): give the file its .dng name, so "
+                              "that its RAW data is read and not its preview")
         if tag in found:
             found[tag].append(_tiff_value(order, kind, n, value))
+    if any(flags & 1 for flags in found[_SUBFILE_TYPE]):  # a camera RAW's thumbnail first
+        raise _Unreadable("describes a reduced-resolution preview first (a camera RAW's?): "
+                          "give a RAW file its own name (.nef, .cr2, ...), so that its RAW "
+                          "data is read and not the preview")
     if len(found[_WIDTH]) != 1 or len(found[_HEIGHT]) != 1:
         raise _Unreadable("gives no single image width and height in its first directory")
     return found[_WIDTH][0], found[_HEIGHT][0]
@@ -159,7 +173,8 @@ def _tiff_value(order: str, kind: int, count: int, value: bytes) -> int:
     """The one SHORT, LONG or LONG8 number held in a directory entry's value field."""
     code = _TIFF_SIZE_TYPES.get(kind)
     if code is None or count != 1:
-        raise _Unreadable(f"gives a width or height as {count} value(s) of type {kind}")
+        raise _Unreadable(f"gives a width, height or subfile type as {count} value(s) of "
+                          f"type {kind}")
     return int(struct.unpack_from(order + code, value)[0])
 
 

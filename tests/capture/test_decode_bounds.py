@@ -105,6 +105,28 @@ def test_a_tiff_whose_first_directory_is_too_long_is_refused_unread(
     _refused(path, r"TIFF header .* first directory of 1,109 entries")
 
 
+def test_a_camera_raw_under_an_ordinary_images_name_is_refused_unread(
+        tmp_path: Path, no_decoding: None) -> None:
+    """A DNG, a NEF-like TIFF whose first image is a reduced-resolution preview, and a
+    CR2, each named .tif or .png: read as TIFFs they gave their preview (1888x1182 for
+    a 5472x3648 DNG) for the frame; now each is refused with the name to give it."""
+    dng = tmp_path / "shot.dng"
+    write_dng(dng, bayer_from_grey(_picture(48, 64)))
+    for name in ("shot.tif", "shot.png"):
+        renamed = tmp_path / name
+        renamed.write_bytes(dng.read_bytes())
+        _refused(renamed, r"TIFF header is a DNG's \(a camera RAW\): give the file its .dng")
+    preview = tmp_path / "preview.tif"
+    tags = [(254, 4, 1), *_strip_tags(16, 1, data_at=8)]
+    ifd = struct.pack("<H", len(tags)) + _ifd_entries("<", tags, big=False) + bytes(4)
+    preview.write_bytes(struct.pack("<2sHI", b"II", 42, 24) + bytes(16) + ifd)
+    _refused(preview, r"reduced-resolution preview first \(a camera RAW's\?\)")
+    cr2 = tmp_path / "canon.tif"
+    cr2.write_bytes(struct.pack("<2sHI", b"II", 42, 16) + b"CR\x02\x00" + bytes(4)
+                    + struct.pack("<H", 0) + bytes(4))
+    _refused(cr2, r"TIFF header is a Canon CR2's")
+
+
 def _jpeg(img: np.ndarray, fill: int, size: tuple[int, int] | None = None) -> bytes:
     """``img`` as a baseline JPEG with ``fill`` bytes 0xff before its SOF marker and, where
     given, another (width, height) written into the SOF."""
