@@ -255,7 +255,10 @@ def stale_results(session: Session, with_targets: bool = True) -> str | None:
     if not with_targets:
         return None
     done = session.path / RESULTS_DIR / LOG_NAME
-    rows = read_rows(done) if done.is_file() else []
+    try:
+        rows = read_rows(done) if done.is_file() else []
+    except InputError:
+        return f"results/{LOG_NAME} is unreadable; process again"
     compared = {(r.target, r.u, r.v, r.laser_readings) for r in rows}
     targets = {(t.name, t.pixel[0], t.pixel[1], len(t.readings)) for t in session.targets}
     if compared != targets:

@@ -9,8 +9,10 @@ import math
 import os
 import sys
 import time
+from pathlib import Path
 from typing import TextIO
 
+from rigkit.core.safefs import require_file
 from rigkit.errors import InputError
 from rigkit.rangefinder import (
     DEFAULT_TIMEOUT_S,
@@ -120,6 +122,8 @@ def _check_output(args: argparse.Namespace) -> None:
     path = args.output
     if args.raw_log is not None and os.path.realpath(args.raw_log) == os.path.realpath(path):
         raise InputError(f"--output {path}: also --raw-log; give the two logs two files")
+    if os.path.exists(path):
+        require_file(Path(path))  # a FIFO would block the command, a device swallow it
     try:
         with open(path, "rb") as handle:
             first = handle.readline(1 << 16)

@@ -249,6 +249,11 @@ def test_log_appends_to_nothing_but_a_log_of_readings(
     code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(same),
                         "--raw-log", str(same)], capsys)
     assert code == 2 and "also --raw-log" in error_line(err) and not same.exists()
+    fifo = tmp_path / "fifo.jsonl"
+    os.mkfifo(fifo)  # opened, it would block the command until someone read it
+    code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(fifo)],
+                       capsys)
+    assert code == 2 and "is a FIFO, not a file" in error_line(err)
     log = tmp_path / "laser.jsonl"
     log.write_text('{"slope_distance_m": 300.0}\n{"slope_dist')  # stopped mid-line
     code, _, _ = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(log)], capsys)

@@ -88,6 +88,14 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
         await wait_for(pilot, lambda: "before the targets changed" in text(app, "#stage"),
                        "why the run is not shown")
         assert "process again" in text(app, "#stage") and text(app, "#verdict").strip() == ""
+    save_session(replace(load_session(session.path),  # as the run had them again
+                         targets=load_session(session.path).targets[:1]))
+    (session.path / RESULTS_DIR / "comparisons.csv").write_text("garbage,,,\n")
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:  # a damaged results/ is said, no crash
+        await wait_for(pilot, lambda: "comparisons.csv is unreadable" in text(app, "#stage"),
+                       "the damaged results said")
+        assert app.is_running and text(app, "#verdict").strip() == ""
 
 
 @synchronous

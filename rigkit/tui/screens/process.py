@@ -72,14 +72,20 @@ class ProcessScreen(ExportingScreen):
         targets as the run had them, and every frame there (what ``session show`` says of
         it; the frames' hashes are read here, off the screen's thread)."""
         session = session_of(self)
-        rows = latest_run(read_rows(session.path / "comparisons.csv")) \
-            if (session.path / "comparisons.csv").is_file() else []
-        if not rows or not (session.path / RESULTS_DIR / "depth.npy").is_file():
+        try:  # a damaged log or results/ is said, and r processes again
+            rows = latest_run(read_rows(session.path / "comparisons.csv")) \
+                if (session.path / "comparisons.csv").is_file() else []
+            done = bool(rows) and (session.path / RESULTS_DIR / "depth.npy").is_file()
+            why = (stale_results(session) or "; ".join(frame_problems(session))) if done else ""
+        except RigkitError as exc:
+            done, why = True, str(exc)
+        except OSError as exc:
+            done, why = True, environment_message(exc)
+        if get_current_worker().is_cancelled:  # r was pressed meanwhile: its run shows
+            return
+        if not done:
             self.app.call_from_thread(self.query_one("#stage", Static).update,
                                       "not processed yet; r: process")
-            return
-        why = stale_results(session) or "; ".join(frame_problems(session))
-        if get_current_worker().is_cancelled:  # r was pressed meanwhile: its run shows
             return
         if why:
             self.app.call_from_thread(self._failed, f"{why}; r: process again")
