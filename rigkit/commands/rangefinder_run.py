@@ -22,6 +22,7 @@ from rigkit.rangefinder import (
     open_rangefinder,
 )
 from rigkit.rangefinder.driver import ReadTimeout
+from rigkit.rangefinder.follow import QUIET_S, quiet_note
 from rigkit.rangefinder.protocols import default_protocol
 from rigkit.rangefinder.sim import PtySimulator, parse_sim_url
 
@@ -93,27 +94,21 @@ def run_read(args: argparse.Namespace) -> int:
     return 0
 
 
-QUIET_NOTE_S = 10.0
-"""Without --timeout, ``log`` says every this many seconds that nothing has come."""
-
-
 def _next_reading(rangefinder: Rangefinder, args: argparse.Namespace) -> Reading:
     """The next reading; without --timeout, waiting for ever but saying every
-    QUIET_NOTE_S what has arrived meanwhile (a wrong --protocol shows as frames that
-    are never readings)."""
+    ``QUIET_S`` what has arrived meanwhile (:func:`rigkit.rangefinder.follow.quiet_note`:
+    a wrong --protocol shows as frames that are never readings)."""
     trigger = True if args.trigger else None
     if args.timeout is not None:
         return rangefinder.read(trigger=trigger)
     while True:
         before = rangefinder.stats
         try:
-            return rangefinder.read(timeout=QUIET_NOTE_S, trigger=trigger)
+            return rangefinder.read(timeout=QUIET_S, trigger=trigger)
         except ReadTimeout:
             seen = rangefinder.stats.since(before)
-            hint = (f": not {rangefinder.protocol.name}? (--protocol)" if seen.frames
-                    else " (fire the laser, or check the cable and --baud)")
-            print(f"no reading in {QUIET_NOTE_S:g} s ({seen.describe()}){hint}",
-                  file=sys.stderr, flush=True)
+            print(quiet_note(seen, rangefinder.protocol.name, QUIET_S), file=sys.stderr,
+                  flush=True)
 
 
 def _check_output(args: argparse.Namespace) -> None:

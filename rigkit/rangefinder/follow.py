@@ -81,7 +81,8 @@ def _readings(device: Rangefinder, stopped: Callable[[], bool], poll_s: float,
             reading = device.read(timeout=poll_s)
         except ReadTimeout:
             if time.monotonic() - since >= quiet_s:
-                yield LinkStatus(True, _quiet_note(device, device.stats.since(before), quiet_s))
+                seen = device.stats.since(before)
+                yield LinkStatus(True, quiet_note(seen, device.protocol.name, quiet_s))
                 before, since = device.stats, time.monotonic()
             continue
         except PortError as exc:
@@ -94,11 +95,14 @@ def _readings(device: Rangefinder, stopped: Callable[[], bool], poll_s: float,
             before, since = device.stats, time.monotonic()
 
 
-def _quiet_note(device: Rangefinder, seen: LineStats, quiet_s: float) -> str:
-    """What arrived in ``quiet_s`` seconds without a reading, and what it suggests."""
+def quiet_note(seen: LineStats, protocol: str, quiet_s: float) -> str:
+    """What arrived in ``quiet_s`` seconds without a reading (``seen``, the line's counts
+    over them), and what it suggests: frames that never parse, another ``protocol``;
+    nothing at all, the trigger or the cable. Said by ``rangefinder log`` and the
+    field TUI alike."""
     if seen.frames:
-        return (f"no reading in {quiet_s:g} s ({seen.describe()}): not "
-                f"{device.protocol.name}? (check the protocol, the cable and the baud rate)")
+        return (f"no reading in {quiet_s:g} s ({seen.describe()}): not {protocol}? "
+                "(check the protocol, the cable and the baud rate)")
     return (f"connected; nothing received in {quiet_s:g} s (fire the laser; if it was "
             "fired, check the cable and the baud rate)")
 
