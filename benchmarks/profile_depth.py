@@ -13,7 +13,12 @@ spread; ``--memory`` adds each stage's peak resident memory; ``--cpu`` gives eac
 stage's CPU seconds (the process's, all threads together) instead of its wall seconds,
 which a machine shared with other jobs moves far less; ``--busy`` adds, under each run's
 wall seconds, how many cores each stage kept busy on average (its CPU seconds over its
-wall seconds: 1.0 on 2 cores is one of them idle). Run it against another
+wall seconds: 1.0 on 2 cores is one of them idle); ``--runnable`` adds how many of the
+run's threads wanted a core, on average, stage by stage (sampled every 2 ms from
+``/proc``: a thread running or waiting for a core counts, one blocked on the disk or a
+lock does not). A machine shared with other jobs stretches the stages but barely moves
+that count, which says what the run could keep busy on an idle machine (2.0 and more:
+two cores' worth). Run it against another
 checkout with ``PYTHONPATH=/that/checkout`` to compare (docs/results.md).
 """
 
@@ -54,12 +59,13 @@ def _timed(module: object, name: str, times: dict[str, float], key: str,
 
 def _staged(module: object, stages: dict[str, float], clock: Callable[[], float]) -> None:
     """Wrap ``module.estimate_depth`` so that each stage's seconds of ``clock`` land in
-    ``stages`` (its progress calls mark where the stages end)."""
+    ``stages`` (its progress calls mark where the stages end; ``stages['start@']`` holds
+    when the first began)."""
     inner = module.estimate_depth  # type: ignore[attr-defined]
 
     def wrapper(*args: object, progress: Callable[[str, float], None] | None = None,
                 **kwargs: object) -> object:
-        last = clock()
+        last = stages["start@"] = clock()
 
         def lap(stage: str, fraction: float) -> None:
             nonlocal last
@@ -98,6 +104,56 @@ class RssSampler:
         return max((mb for t, mb in self.samples if t0 <= t <= t1), default=float("nan"))
 
 
+class RunnableSampler:
+    """How many of this process's threads (this sampler's own left out) are running or
+    waiting for a core (state R in ``/proc/self/task/*/stat``), every 2 ms in a thread,
+    as (perf_counter, count) pairs."""
+
+    def __init__(self) -> None:
+        self.samples: list[tuple[float, int]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        me = str(threading.get_native_id())
+        while not self._stop.wait(0.002):
+            count = 0
+            for task in os.listdir("/proc/self/task"):
+                if task == me:
+                    continue
+                try:
+                    with open(f"/proc/self/task/{task}/stat") as stat:
+                        state = stat.read().rpartition(")")[2].split()[0]
+                except OSError:  # the thread ended meanwhile
+                    continue
+                count += state == "R"
+            self.samples.append((time.perf_counter(), count))
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def mean(self, t0: float, t1: float) -> float:
+        counts = [n for t, n in self.samples if t0 <= t <= t1]
+        return sum(counts) / len(counts) if counts else float("nan")
+
+
+def _edges(times: dict[str, float], stages: dict[str, float]
+           ) -> list[tuple[str, float, float]]:
+    """(name, start, end) in perf_counter seconds of reading the frames, each stage of
+    the pipeline (``stages`` of a :func:`_staged` wrapper on that clock), the time
+    until the outputs are written, and their writing (``times`` of :func:`_timed`)."""
+    edges = [("load", times["load@"], times["load@"] + times["load"])]
+    at = stages["start@"]
+    for stage in STAGES:
+        edges.append((stage, at, at + stages.get(stage, 0.0)))
+        at += stages.get(stage, 0.0)
+    edges.append(("until write", at, times["write@"]))
+    edges.append(("write", times["write@"], times["write@"] + times["write"]))
+    return edges
+
+
 def depth_parser(description: str, out: str) -> argparse.ArgumentParser:
     """The arguments of a ``rigkit depth`` run to measure: the three positions (a
     comma-separated burst each, or one file), the rig's three numbers, and ``--out``
@@ -130,6 +186,9 @@ def main() -> int:
                     help="CPU seconds of the process per stage instead of wall seconds")
     ap.add_argument("--busy", action="store_true",
                     help="under each run's wall seconds, the cores each stage kept busy")
+    ap.add_argument("--runnable", action="store_true",
+                    help="under each run's wall seconds, its threads that wanted a core, "
+                         "stage by stage (mean)")
     args = ap.parse_args()
     if args.busy and args.cpu:
         ap.error("--busy goes with wall seconds: leave out --cpu")
@@ -152,6 +211,9 @@ def main() -> int:
     if args.busy:
         _timed(depthrun, "load_capture", cpu_times, "load", time.process_time)
         _timed(files, "write_together", cpu_times, "write", time.process_time)
+    wall_stages: dict[str, float] = {}
+    if args.memory or args.runnable:
+        _staged(depthrun, wall_stages, time.perf_counter)
     argv = depth_argv(args)
     header = (f"{'run':>3} {'import':>6} {'load':>5} "
               + " ".join(f"{s[:6]:>6}" for s in STAGES)
@@ -163,13 +225,15 @@ def main() -> int:
         cpu_times.clear()
         t1, c1 = clock(), time.process_time()
         sampler = RssSampler() if args.memory else None
+        runnable = RunnableSampler() if args.runnable else None
         if profiler is not None:
             profiler.enable()
         rigkit_main(argv)
         if profiler is not None:
             profiler.disable()
-        if sampler is not None:
-            sampler.stop()
+        for each in (sampler, runnable):
+            if each is not None:
+                each.stop()
         total = clock() - t1 + (imports if run == 0 else 0.0)
         stages = cpu_stages if args.cpu else json.loads(
             args.out.with_suffix(".json").read_text())["timings_s"]
@@ -188,14 +252,13 @@ def main() -> int:
                 f"{c / w if w > 0 else 0.0:{5 if i in (0, len(cpu) - 1) else 6}.2f}"
                 for i, (c, w) in enumerate(zip(cpu, wall, strict=True)))
                 + f" {'':>5} {cpu_total / (clock() - t1):6.2f}")
-        if sampler is not None and not args.cpu:  # the stages follow one another
-            edges = [("load", times["load@"], times["load@"] + times["load"])]
-            at = edges[0][2]
-            for stage in STAGES:
-                edges.append((stage, at, at + stages.get(stage, 0.0)))
-                at += stages.get(stage, 0.0)
-            edges.append(("until write", at, times["write@"]))
-            edges.append(("write", times["write@"], times["write@"] + times["write"]))
+        edges = _edges(times, wall_stages) if args.memory or args.runnable else []
+        if runnable is not None:
+            print(f"{'':>3} {'wanted':>6} " + " ".join(
+                f"{runnable.mean(a, b):{5 if i in (0, len(edges) - 1) else 6}.2f}"
+                for i, (_, a, b) in enumerate(edges) if _ != "until write")
+                + f" {'':>5} {runnable.mean(edges[0][1], edges[-1][2]):6.2f}")
+        if sampler is not None:
             print("    peak RSS MB: " + ", ".join(
                 f"{name} {sampler.peak(a, b):.0f}" for name, a, b in edges))
     if profiler is not None:

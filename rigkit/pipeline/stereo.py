@@ -3,8 +3,9 @@
 The default matcher is OpenCV's semi-global matching (Hirschmueller 2008) with
 sub-pixel interpolation, a left-right consistency check (the right view's disparity
 comes from matching the mirrored pair, half a pixel apart, and the two passes are
-averaged where they agree) and speckle filtering. Any object with the
-:class:`StereoMatcher` signature can replace it.
+averaged where they agree) and speckle filtering, run on fixed bands of rows side by
+side (:func:`bands`). Any object with the :class:`StereoMatcher` signature can replace
+it.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from typing import Protocol
 
 import cv2
 import numpy as np
+
+from rigkit.core.threads import ViewPool
 
 
 class StereoMatcher(Protocol):
@@ -26,9 +29,36 @@ class StereoMatcher(Protocol):
         ...
 
 
+BAND_ROWS = 384
+"""Rows of the stereo canvas each band of :class:`SGBM` gives (:func:`bands`): a
+full-resolution canvas (~1730 rows at half scale) is 4 bands, 8 passes side by side."""
+BAND_ABOVE = 32
+"""Rows above its own that a band is matched with and then drops: semi-global matching's
+paths from the top start there, so that they have settled by the band's first row.
+OpenCV splits each call into 4 stripes of its own (whatever the number of threads),
+which overlap by 3 rows and a tenth of a stripe: 14 rows in a band."""
+BAND_BELOW = 8
+"""Rows below its own that a band is matched with and then drops: the matching window,
+the median filter and the speckle filter look a few rows down."""
+
+
+def bands(height: int) -> list[tuple[int, int]]:
+    """The bands (first row, row after the last) that :class:`SGBM` matches side by side,
+    for a canvas of ``height`` rows: ``BAND_ROWS`` each, the last one taking in a
+    remainder of under half a band. The layout depends on the canvas alone, never on
+    the number of cores or threads, so the disparities are the same on any machine."""
+    starts = list(range(0, height, BAND_ROWS))
+    if len(starts) > 1 and height - starts[-1] < BAND_ROWS // 2:
+        starts.pop()
+    return [(r0, r1) for r0, r1 in zip(starts, [*starts[1:], height], strict=True)]
+
+
 @dataclass(frozen=True)
 class SGBM:
-    """Semi-global block matching with a left-right check (CPU, OpenCV)."""
+    """Semi-global block matching with a left-right check (CPU, OpenCV), on the bands
+    of :func:`bands`, each matched with ``BAND_ABOVE`` and ``BAND_BELOW`` rows of context
+    in a :class:`rigkit.core.threads.ViewPool` (each band's two passes and their merge
+    are its own: only the band's own rows are kept)."""
 
     block_size: int = 5
     uniqueness: int = 5
@@ -57,6 +87,28 @@ class SGBM:
     ) -> np.ndarray:
         lo, hi = disparity_range
         n = max(16, int(np.ceil((hi - lo) / 16.0)) * 16)
+        h = left.shape[0]
+        out = np.empty(left.shape, np.float32)
+        with ViewPool() as pool:
+            passes = []
+            for r0, r1 in bands(h):
+                rows = slice(max(r0 - BAND_ABOVE, 0), min(r1 + BAND_BELOW, h))
+                keep = slice(r0 - rows.start, r1 - rows.start)
+                passes.append((r0, r1, *(pool.submit(self._pass, left[rows], right[rows],
+                                                      lo, n, mirrored, keep)
+                                         for mirrored in (False, True))))
+            for r0, r1, direct, mirrored in passes:
+                out[r0:r1] = _merge_passes(direct.result(), mirrored.result(),
+                                           self.lr_tolerance_px)
+        return out
+
+    def _pass(self, left: np.ndarray, right: np.ndarray, lo: int, n: int, mirrored: bool,
+              keep: slice) -> np.ndarray:
+        """One pass of semi-global matching on a band of rows ((h, w) float32 each),
+        for disparities from ``lo`` over ``n`` (a multiple of 16): the left view's
+        disparities (px, ``x_left - x_right``), or with ``mirrored`` the right view's
+        after its image moved ``HALF_PX`` to the right (see :func:`_merge_passes`); NaN
+        where none. Only the rows ``keep`` are returned."""
         # SGBM leaves the first lo+n columns unmatched (and the mirrored pass the last
         # ones): pad both images so that band falls outside the picture.
         pad = n + abs(lo)
@@ -66,7 +118,9 @@ class SGBM:
             )
             for im in (left, right)
         )
-        raw = self._matcher(lo, n).compute(l8, r8)[:, pad:-pad]
+        if not mirrored:
+            raw = self._matcher(lo, n).compute(l8, r8)[keep, pad:-pad]
+            return np.where(raw >= lo * 16, raw / np.float32(16), np.float32(np.nan))
         # Right view's disparity: mirroring both images and swapping them keeps the sign
         # of x_left - x_right, so the same matcher applies; mirror the result back. The
         # right image moves half a pixel to the right first, so that this pass's
@@ -76,10 +130,8 @@ class SGBM:
                                  (r8.shape[1], r8.shape[0]), flags=cv2.INTER_LINEAR,
                                  borderMode=cv2.BORDER_REPLICATE)
         raw_r = self._matcher(lo - 1, n).compute(shifted[:, ::-1].copy(), l8[:, ::-1].copy())
-        raw_r = raw_r[:, ::-1][:, pad:-pad]
-        disp = np.where(raw >= lo * 16, raw / np.float32(16), np.float32(np.nan))
-        disp_r = np.where(raw_r >= (lo - 1) * 16, raw_r / np.float32(16), np.float32(np.nan))
-        return _merge_passes(disp, disp_r, self.lr_tolerance_px)
+        raw_r = raw_r[keep, ::-1][:, pad:-pad]
+        return np.where(raw_r >= (lo - 1) * 16, raw_r / np.float32(16), np.float32(np.nan))
 
 
 def _at_match(disp: np.ndarray, right_map: np.ndarray, fill: float) -> np.ndarray:

@@ -1,7 +1,8 @@
 """The same depth, bit for bit, whatever the number of BLAS and OpenCV threads
 (rigkit.core.threads; issue 34). A field scene with a lens is the case that showed it:
 its lens fit's least squares, split across BLAS threads, used to move a few pixels'
-depth by metres."""
+depth by metres. The work split into pieces of a fixed layout (issue 52: the stereo
+canvas's bands) is checked piece by piece on 1, 2 and 4 threads."""
 
 from __future__ import annotations
 
@@ -13,10 +14,11 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from rigkit.pipeline import DepthResult, RigGeometry, estimate_depth
+from rigkit.pipeline import DepthResult, RigGeometry, estimate_depth, stereo
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.scene import field_params
+from tests.pipeline.textures import plane_waves
 
 LENS = (0.47, 0.0, 0.0, 0.0, 0.0)
 
@@ -56,3 +58,31 @@ def test_the_callers_blas_threads_come_back_after_a_run(field_lens_scene: Path) 
     with threadpool_limits(limits=2, user_api="blas"):
         _depth(field_lens_scene, 2, 1)
         assert {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"} == {2}
+
+
+def test_the_stereo_bands_give_the_same_disparities_on_any_number_of_threads(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # A pair of known disparity (5.25 px) cut into 5 bands of 80 rows: every thread count
+    # gives the same disparities, and the rows at the seams are as good as the others.
+    monkeypatch.setattr(stereo, "BAND_ROWS", 80)
+    size, true = (420, 192), 5.25
+    left = (128 + 30 * plane_waves((0, 0), size)).astype(np.float32)
+    right = (128 + 30 * plane_waves((true, 0), size)).astype(np.float32)
+    assert len(stereo.bands(size[0])) == 5
+    before = cv2.getNumThreads()
+    found = []
+    try:
+        for threads in (1, 2, 4):
+            cv2.setNumThreads(threads)
+            found.append(stereo.SGBM()(left, right, (0, 16)))
+    finally:
+        cv2.setNumThreads(before)
+    for other in found[1:]:
+        np.testing.assert_array_equal(found[0], other)
+    error = np.abs(found[0][:, 40:-20] - true)
+    seams = np.zeros(size[0], bool)
+    for r0, _ in stereo.bands(size[0])[1:]:
+        seams[r0 - 4:r0 + 4] = True
+    for rows in (seams, ~seams):
+        assert np.isfinite(error[rows]).mean() > 0.99
+        assert np.nanpercentile(error[rows], 90) < 0.1
