@@ -94,12 +94,12 @@ class SGBM:
             for r0, r1 in bands(h):
                 rows = slice(max(r0 - BAND_ABOVE, 0), min(r1 + BAND_BELOW, h))
                 keep = slice(r0 - rows.start, r1 - rows.start)
-                passes.append((r0, r1, *(pool.submit(self._pass, left[rows], right[rows],
-                                                      lo, n, mirrored, keep)
-                                         for mirrored in (False, True))))
-            for r0, r1, direct, mirrored in passes:
-                out[r0:r1] = _merge_passes(direct.result(), mirrored.result(),
-                                           self.lr_tolerance_px)
+                direct, mirrored = (pool.submit(self._pass, left[rows], right[rows], lo, n,
+                                                mirror, keep) for mirror in (False, True))
+                passes.append((slice(r0, r1), direct, mirrored))
+            for band, direct, mirrored in passes:
+                out[band] = _merge_passes(direct.result(), mirrored.result(),
+                                          self.lr_tolerance_px)
         return out
 
     def _pass(self, left: np.ndarray, right: np.ndarray, lo: int, n: int, mirrored: bool,
