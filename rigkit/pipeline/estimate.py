@@ -275,7 +275,7 @@ def estimate_depth(
         left_fp, right_fp = footprints(rect, size, scale, lens=lens, right_lens=right_lens)
         surface = surface_mask(rl, left_fp, s.min_texture, s.texture_window_px)
         disparity = matched.result()
-    disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
+    disparity = restrict_to_footprints(disparity, left_fp, right_fp, surface)
     lap("stereo", 0.75)
     amb = remove_ambiguity(m_lb, disparity, scale, rect, rig, s)
     lap("ambiguity", 0.8)
@@ -292,7 +292,7 @@ def estimate_depth(
     dense, holes = fill_holes(disparity, s.fill_max_gap_px, barrier=agree.disagree)
     # Holes filled across a footprint edge would extrapolate into unseen ground, and
     # a hole with no surface in it (sky between two buildings) is no occlusion.
-    dense = restrict_to_footprints(np.where(surface, dense, np.nan), left_fp, right_fp)
+    dense = restrict_to_footprints(dense, left_fp, right_fp, surface)
     holes &= np.isfinite(dense)
     depth, (filled, no_surface, disagree) = to_left(
         dense, (holes, ~surface & left_fp, agree.disagree & left_fp), scale, rect, amb.beta,

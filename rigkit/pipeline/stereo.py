@@ -177,12 +177,30 @@ def _merge_passes(disp: np.ndarray, disp_r: np.ndarray, tol: float) -> np.ndarra
 
 
 def restrict_to_footprints(
-    disp: np.ndarray, left_valid: np.ndarray, right_valid: np.ndarray
+    disp: np.ndarray, left_valid: np.ndarray, right_valid: np.ndarray,
+    surface: np.ndarray | None = None,
 ) -> np.ndarray:
     """NaN where the left pixel, or its match ``x - d`` in the right image, lies outside
-    that image's footprint on the rectified canvas (all (H, W); masks bool)."""
-    ok = _at_match(disp, right_valid, 0) & left_valid
-    return np.where(ok, disp, np.nan).astype(np.float32, copy=False)
+    that image's footprint on the rectified canvas, and where ``surface`` is False (all
+    (H, W); masks bool; None: everywhere a surface). Bands of ``ROWS`` rows side by side
+    (each row's matches lie in the row)."""
+    out = np.empty(disp.shape, np.float32)
+
+    def band(r0: int) -> None:
+        rows = slice(r0, r0 + ROWS)
+        d = disp[rows] if surface is None else np.where(surface[rows], disp[rows], np.nan)
+        ok = _at_match(d, right_valid[rows], 0) & left_valid[rows]
+        np.copyto(out[rows], np.where(ok, d, np.float32(np.nan)))
+
+    with ViewPool() as pool:
+        pool.map(band, range(0, disp.shape[0], ROWS))
+    return out
+
+
+ROWS = 128
+"""Rows of the canvas per piece of the work that is done row by row (:func:`fill_holes`,
+:func:`restrict_to_footprints`), the pieces spread over a
+:class:`rigkit.core.threads.ViewPool`: every row comes out as from the whole canvas."""
 
 
 def surface_mask(
@@ -291,8 +309,24 @@ def fill_holes(
     carried across), are left NaN.
 
     disp: (H, W) float32 with NaN holes; barrier: (H, W) bool or None.
-    Returns (filled disparity, bool mask of filled).
+    Returns (filled disparity, bool mask of filled). Bands of ``ROWS`` rows side by side.
     """
+    out, hole = np.empty(disp.shape, disp.dtype), np.empty(disp.shape, bool)
+
+    def band(r0: int) -> None:
+        rows = slice(r0, r0 + ROWS)
+        out[rows], hole[rows] = _fill_rows(disp[rows], max_gap,
+                                           None if barrier is None else barrier[rows])
+
+    with ViewPool() as pool:
+        pool.map(band, range(0, disp.shape[0], ROWS))
+    return out, hole
+
+
+def _fill_rows(
+    disp: np.ndarray, max_gap: int, barrier: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fill_holes` of some rows."""
     h, w = disp.shape
     valid = np.isfinite(disp)
     end = valid if barrier is None else valid | barrier
