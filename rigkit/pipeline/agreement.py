@@ -33,6 +33,8 @@ under-estimated. Something that moved is metres away, far beyond one step.
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import Future
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 import cv2
@@ -153,12 +155,13 @@ def _sample(image: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
 
 def back_positions(
     disparity: np.ndarray, scale: float, rect: Rectification, amb: Ambiguity, lens: Lens,
-    baseline_lr_m: float, baseline_lb_m: float,
+    baseline_lr_m: float, baseline_lb_m: float, pool: ViewPool | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Where each pixel of the ``scale``-resized rectified left canvas lands in the
     ``scale``-resized recorded back image, given its disparity (px on that canvas,
     ``x_left - x_right``) and the geometry fitted by ambiguity removal: (x, y), each
-    (h, w) float32 px; NaN where there is no disparity."""
+    (h, w) float32 px; NaN where there is no disparity. Chunks of ``CHUNK_ROWS`` rows
+    side by side in ``pool`` (None: a pool of its own)."""
     h, w = disparity.shape
     S, Sinv = scaling(scale), np.linalg.inv(scaling(scale))
     f = rect.K[0, 0]
@@ -170,7 +173,8 @@ def back_positions(
     xs, ys = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
     u = Sinv[0, 0] * np.arange(w) + Sinv[0, 2]
     a = (u - cx) / f
-    for r0 in range(0, h, CHUNK_ROWS):
+
+    def chunk(r0: int) -> None:
         rows = slice(r0, min(r0 + CHUNK_ROWS, h))
         v = Sinv[1, 1] * np.arange(rows.start, rows.stop) + Sinv[1, 2]
         p = ((v - cy) / f)[:, None]
@@ -190,6 +194,9 @@ def back_positions(
         rec = lens.to_recorded(ideal)
         xs[rows] = S[0, 0] * rec[..., 0] + S[0, 2]
         ys[rows] = S[1, 1] * rec[..., 1] + S[1, 2]
+
+    with ViewPool() if pool is None else nullcontext(pool) as run:
+        run.map(chunk, range(0, h, CHUNK_ROWS))
     return xs, ys
 
 
@@ -229,20 +236,24 @@ def view_agreement(
     right_steps = shimmer_steps(rect.row_rms_px, scale, axes=1)
     back_steps = shimmer_steps(amb.rms_px / np.sqrt(2), scale, axes=2)  # 2-D RMS per axis
 
-    def right_ncc() -> np.ndarray:
-        return _best_zncc(left, lambda dx, dy: right_at_disparity(right, disparity, dy),
-                          right_steps, known, window)
+    def right_view(dx: float, dy: float) -> np.ndarray:
+        return right_at_disparity(right, disparity, dy)
 
-    def back_ncc() -> np.ndarray:
-        back_small = _resized(back, scale)
+    # Each view's comparison at each offset is a task of its own, collected in order.
+    with ViewPool() as pool:
+        back_small = pool.submit(_resized, back, scale)
+        right_scores = [pool.submit(_score, left, right_view, step, known, window)
+                        for step in right_steps]
         xs, ys = back_positions(disparity, scale, rect, amb, lens, rig.baseline_lr_m,
-                                rig.baseline_lb_m)
-        return _best_zncc(left, lambda dx, dy: _sample(back_small, xs + np.float32(dx),
-                                                       ys + np.float32(dy)),
-                          back_steps, known, window)
+                                rig.baseline_lb_m, pool)
+        small = back_small.result()
 
-    with ViewPool() as pool:  # the two views' comparisons are independent
-        ncc = pool.map(lambda compare: compare(), (right_ncc, back_ncc))
+        def back_view(dx: float, dy: float) -> np.ndarray:
+            return _sample(small, xs + np.float32(dx), ys + np.float32(dy))
+
+        back_scores = [pool.submit(_score, left, back_view, step, known, window)
+                       for step in back_steps]
+        ncc = [_best(right_scores), _best(back_scores)]
     with np.errstate(invalid="ignore"):
         bad = (ncc[0] < min_ncc) | (ncc[1] < min_ncc)
     if margin:
@@ -251,19 +262,26 @@ def view_agreement(
     return Agreement(bad, ncc[0], ncc[1])
 
 
-def _best_zncc(
-    left: np.ndarray, sample: Callable[[float, float], np.ndarray],
-    steps: list[tuple[float, float]], known: np.ndarray, window: int,
+def _score(
+    left: np.ndarray, sample: Callable[[float, float], np.ndarray], step: tuple[float, float],
+    known: np.ndarray, window: int,
 ) -> np.ndarray:
-    """The best ZNCC of ``left`` with a view ``sample(dx, dy)`` gives at each offset of
-    ``steps``: (h, w) float32, NaN where no offset has a seen window. A pixel without
-    a disparity (``known`` False) is no evidence; nor is one the view does not see."""
-    best: np.ndarray | None = None
-    for dx, dy in steps:
-        seen = sample(dx, dy)
-        np.copyto(seen, np.nan, where=~known)
-        score = zncc(left, seen, window)
-        np.copyto(score, np.nan, where=np.isnan(seen))
-        best = score if best is None else np.fmax(best, score, out=best)
-    assert best is not None
+    """The ZNCC of ``left`` with what a view shows where the depth puts each pixel, moved
+    by one ``step`` (dx, dy) of :func:`shimmer_steps`: ``sample(dx, dy)``, (h, w) float32,
+    NaN where the view has nothing. Returns (h, w) float32, NaN where the view does not
+    see the pixel. A pixel without a disparity (``known`` False) is no evidence; nor is
+    one the view does not see."""
+    seen = sample(*step)
+    np.copyto(seen, np.nan, where=~known)
+    score = zncc(left, seen, window)
+    np.copyto(score, np.nan, where=np.isnan(seen))
+    return score
+
+
+def _best(scores: list[Future[np.ndarray]]) -> np.ndarray:
+    """The best of a view's :func:`_score` at each offset, taken in the order given
+    (each dropped once taken): (h, w) float32, NaN where no offset has a seen window."""
+    best = scores.pop(0).result()
+    while scores:
+        np.fmax(best, scores.pop(0).result(), out=best)
     return best

@@ -15,6 +15,7 @@ import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from rigkit.pipeline import DepthResult, RigGeometry, estimate_depth, stereo
+from rigkit.pipeline.agreement import shimmer_steps
 from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.scene import field_params
@@ -28,6 +29,16 @@ def field_lens_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
     params = replace(field_params(SynthParams(width=480, height=360)), distortion=LENS)
     out = tmp_path_factory.mktemp("determinism") / "field-lens"
     write_scene(generate_scene(params, seed=3), out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def shimmer_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    # Midday air and movers: the views' agreement compares each window at 3 and 9 offsets.
+    params = replace(field_params(SynthParams(width=576, height=432)), shimmer_px=1.0,
+                     n_movers=3)
+    out = tmp_path_factory.mktemp("determinism") / "shimmer"
+    write_scene(generate_scene(params, seed=9), out)
     return out
 
 
@@ -52,6 +63,25 @@ def test_depth_is_the_same_on_one_blas_thread_or_two(field_lens_scene: Path) -> 
     assert one.ambiguity.offset_px == two.ambiguity.offset_px
     assert one.lens_fit is not None and two.lens_fit is not None
     assert one.lens_fit.as_dict() == two.lens_fit.as_dict()
+
+
+def test_every_piece_of_a_run_is_the_same_on_one_two_or_four_threads(
+        shimmer_scene: Path) -> None:
+    # The pieces of a fixed layout (the depth map's row chunks, the hole filling's bands,
+    # the back view's positions, each view's comparison at each offset) spread over as
+    # many threads as OpenCV has.
+    runs = [_depth(shimmer_scene, 1, threads) for threads in (1, 2, 4)]
+    a = runs[0].ambiguity
+    steps = (shimmer_steps(runs[0].rectification.row_rms_px, runs[0].disparity_scale, 1),
+             shimmer_steps(a.rms_px / np.sqrt(2), runs[0].disparity_scale, 2))
+    assert [len(s) for s in steps] == [3, 9]
+    assert runs[0].disagree.any() and np.isfinite(runs[0].depth).mean() > 0.3
+    for other in runs[1:]:
+        for name in ("depth", "sigma", "disparity", "disagree", "filled", "no_surface"):
+            np.testing.assert_array_equal(getattr(runs[0], name), getattr(other, name))
+        b = other.ambiguity
+        assert (b.offset_px, b.offset_sigma_px, b.rms_px) == (a.offset_px, a.offset_sigma_px,
+                                                              a.rms_px)
 
 
 def test_the_callers_blas_threads_come_back_after_a_run(field_lens_scene: Path) -> None:
