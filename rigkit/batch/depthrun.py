@@ -29,7 +29,9 @@ import numpy as np
 from rigkit.capture.checks import capture_warnings
 from rigkit.capture.frames import FrameFile, load_capture
 from rigkit.capture.session import POSITIONS
+from rigkit.core.files import encode_png
 from rigkit.core.lazy import preload
+from rigkit.core.threads import ViewPool
 from rigkit.pipeline import DepthResult, estimate_depth
 from rigkit.pipeline.shimmer import Shimmer
 from rigkit.rig.bursts import burst_warning
@@ -45,9 +47,11 @@ class DepthRun:
     """What :func:`run_depth` found. ``left``: the left image the depth map lies on,
     (H, W) float32 grey in [0, 255]; ``burst_length``: frames per position (the
     shortest burst); ``warnings``: one line each, for the user and depth.json;
-    ``shortfalls``: those of them that say the capture misses the goal (the disparity
-    offset alone leaves more than 0.3 % of depth; a burst shorter than the measured
-    shimmer calls for), which keep a verdict from saying "done"."""
+    ``grey_png``: the left image the depth map lies on as an 8-bit grey PNG
+    (``grey.png`` beside the depth map, the point colours of ``rigkit export``;
+    :func:`left_grey`); ``shortfalls``: those of the warnings that say the capture misses
+    the goal (the disparity offset alone leaves more than 0.3 % of depth; a burst shorter
+    than the measured shimmer calls for), which keep a verdict from saying "done"."""
 
     result: DepthResult
     left: np.ndarray
@@ -56,6 +60,7 @@ class DepthRun:
     shimmer: tuple[Shimmer, str] | None
     burst_length: int
     warnings: tuple[str, ...]
+    grey_png: bytes
     shortfalls: tuple[str, ...] = ()
 
     def metadata(self) -> dict[str, Any]:
@@ -82,10 +87,9 @@ class DepthRun:
         }
 
 
-    def left_grey(self) -> np.ndarray:
-        """The left image the depth map lies on as (H, W) uint8 grey, for the point
-        colours of ``rigkit export`` (``grey.png`` beside the depth map)."""
-        return np.clip(np.rint(self.left), 0, 255).astype(np.uint8)
+def left_grey(left: np.ndarray) -> bytes:
+    """The ``left`` image ((H, W) float32 grey, 0-255) as an 8-bit grey PNG."""
+    return encode_png(np.clip(np.rint(left), 0, 255).astype(np.uint8))
 
 
 def _frame_meta(frame: FrameFile) -> dict[str, str]:
@@ -122,10 +126,12 @@ def run_depth(
         warnings = capture_warnings(profile, firsts, force)
     report("reading frames", 0.1)
     geometry = profile.geometry()
-    result = estimate_depth(
-        *loaded.images, geometry, settings=profile.pipeline_settings(),
-        progress=lambda stage, f: report(stage, 0.1 + 0.8 * f),
-    )
+    with ViewPool() as pool:  # grey.png is compressed while the depth is found
+        grey = pool.submit(left_grey, loaded.images[0])
+        result = estimate_depth(
+            *loaded.images, geometry, settings=profile.pipeline_settings(),
+            progress=lambda stage, f: report(stage, 0.1 + 0.8 * f),
+        )
     length = min(len(bursts[pos]) for pos in POSITIONS)
     found = [result.offset_warning(length)]
     if loaded.shimmer is not None:
@@ -142,4 +148,5 @@ def run_depth(
         burst_length=length,
         warnings=(*warnings, *shortfalls),
         shortfalls=shortfalls,
+        grey_png=grey.result(),
     )

@@ -137,7 +137,7 @@ def _process_locked(
         "depth.npy": result.depth,
         "sigma.npy": result.sigma,
         "depth.json": json.dumps(meta, indent=2),
-        "grey.png": run.left_grey(),
+        "grey.png": run.grey_png,
         "flags.npy": result.flags(),
         **preview_set(run.left, result.depth, result.sigma, session.targets, rows,
                       result.disagree),

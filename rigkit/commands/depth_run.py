@@ -143,7 +143,7 @@ def _outputs(run: Any, out: Path, preview: bool) -> dict[str, Any]:
 
     result = run.result
     contents: list[Any] = [result.depth, result.sigma, json.dumps(run.metadata(), indent=2),
-                           run.left_grey(), result.flags()]
+                           run.grey_png, result.flags()]
     if preview:
         lo, hi = depth_range(result.depth)
         contents += [colorize(result.depth, lo, hi, "depth z (m)"),
