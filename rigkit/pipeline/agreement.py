@@ -129,14 +129,16 @@ def zncc(a: np.ndarray, b: np.ndarray, window: int) -> np.ndarray:
     return cov
 
 
-def right_at_disparity(right: np.ndarray, disparity: np.ndarray, dy: float = 0.0
-                       ) -> np.ndarray:
-    """The rectified right image (h, w) float32 sampled where each left pixel's
-    disparity (px, ``x_left - x_right``) puts its match, ``dy`` px lower: (h, w)
-    float32, NaN where the disparity is NaN or the match is off the image."""
+def right_at_disparity(right: np.ndarray, disparity: np.ndarray, dy: float = 0.0,
+                       first_row: int = 0) -> np.ndarray:
+    """The rectified right image (H, w) float32 sampled where each left pixel's
+    disparity (px, ``x_left - x_right``; (h, w), the canvas's rows from ``first_row``)
+    puts its match, ``dy`` px lower: (h, w) float32, NaN where the disparity is NaN or
+    the match is off the image."""
     h, w = disparity.shape
     xs = (np.arange(w, dtype=np.float32)[None, :] - disparity).astype(np.float32, copy=False)
-    ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None] + np.float32(dy), (h, w))
+    ys = np.broadcast_to(np.arange(first_row, first_row + h, dtype=np.float32)[:, None]
+                         + np.float32(dy), (h, w))
     return cv2.remap(right, xs, np.ascontiguousarray(ys), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
 
@@ -236,24 +238,23 @@ def view_agreement(
     right_steps = shimmer_steps(rect.row_rms_px, scale, axes=1)
     back_steps = shimmer_steps(amb.rms_px / np.sqrt(2), scale, axes=2)  # 2-D RMS per axis
 
-    def right_view(dx: float, dy: float) -> np.ndarray:
-        return right_at_disparity(right, disparity, dy)
+    def right_view(dx: float, dy: float, rows: slice) -> np.ndarray:
+        return right_at_disparity(right, disparity[rows], dy, rows.start)
 
-    # Each view's comparison at each offset is a task of its own, collected in order.
+    # Each view's comparison at each offset, band by band, is a task of its own,
+    # collected in order.
     with ViewPool() as pool:
         back_small = pool.submit(_resized, back, scale)
-        right_scores = [pool.submit(_score, left, right_view, step, known, window)
-                        for step in right_steps]
+        right_scores = _scores(pool, left, right_view, right_steps, known, window)
         xs, ys = back_positions(disparity, scale, rect, amb, lens, rig.baseline_lr_m,
                                 rig.baseline_lb_m, pool)
         small = back_small.result()
 
-        def back_view(dx: float, dy: float) -> np.ndarray:
-            return _sample(small, xs + np.float32(dx), ys + np.float32(dy))
+        def back_view(dx: float, dy: float, rows: slice) -> np.ndarray:
+            return _sample(small, xs[rows] + np.float32(dx), ys[rows] + np.float32(dy))
 
-        back_scores = [pool.submit(_score, left, back_view, step, known, window)
-                       for step in back_steps]
-        ncc = [_best(right_scores), _best(back_scores)]
+        back_scores = _scores(pool, left, back_view, back_steps, known, window)
+        ncc = [_best(right_scores, left.shape), _best(back_scores, left.shape)]
     with np.errstate(invalid="ignore"):
         bad = (ncc[0] < min_ncc) | (ncc[1] < min_ncc)
     if margin:
@@ -262,26 +263,58 @@ def view_agreement(
     return Agreement(bad, ncc[0], ncc[1])
 
 
-def _score(
-    left: np.ndarray, sample: Callable[[float, float], np.ndarray], step: tuple[float, float],
+SCORE_ROWS = 256
+"""Rows of the canvas per band of a view's comparison (:func:`_scores`)."""
+
+Sample = Callable[[float, float, slice], np.ndarray]
+"""What a view shows where the depth puts each pixel of the canvas's ``rows`` (a slice),
+moved by (dx, dy) px: (h, w) float32, NaN where the view has nothing."""
+Scores = list[tuple[slice, list[Future[np.ndarray]]]]
+"""Bands of the canvas's rows, each with a view's :func:`_score` there at each offset."""
+
+
+def _scores(
+    pool: ViewPool, left: np.ndarray, sample: Sample, steps: list[tuple[float, float]],
     known: np.ndarray, window: int,
+) -> Scores:
+    """A view's comparison with ``left`` (h, w) at each of ``steps``, in bands of
+    ``SCORE_ROWS`` rows, each band's windows taken on the band and half a window more
+    each side (a window's sums are its own pixels': the same as on the whole canvas),
+    as tasks of ``pool``."""
+    h, half = left.shape[0], window // 2
+    scores: Scores = []
+    for r0 in range(0, h, SCORE_ROWS):
+        band = slice(r0, min(r0 + SCORE_ROWS, h))
+        rows = slice(max(r0 - half, 0), min(band.stop + half, h))
+        keep = slice(r0 - rows.start, band.stop - rows.start)
+        scores.append((band, [pool.submit(_score, left[rows], sample, step, known[rows],
+                                          window, rows, keep) for step in steps]))
+    return scores
+
+
+def _score(
+    left: np.ndarray, sample: Sample, step: tuple[float, float], known: np.ndarray,
+    window: int, rows: slice, keep: slice,
 ) -> np.ndarray:
-    """The ZNCC of ``left`` with what a view shows where the depth puts each pixel, moved
-    by one ``step`` (dx, dy) of :func:`shimmer_steps`: ``sample(dx, dy)``, (h, w) float32,
-    NaN where the view has nothing. Returns (h, w) float32, NaN where the view does not
-    see the pixel. A pixel without a disparity (``known`` False) is no evidence; nor is
-    one the view does not see."""
-    seen = sample(*step)
+    """The ZNCC of ``left`` (the canvas's ``rows``) with what a view shows where the
+    depth puts each pixel, moved by one ``step`` (dx, dy) of :func:`shimmer_steps`
+    (``sample``): float32, NaN where the view does not see the pixel, of the rows
+    ``keep`` of ``rows``. A pixel without a disparity (``known`` False) is no evidence;
+    nor is one the view does not see."""
+    seen = sample(*step, rows)
     np.copyto(seen, np.nan, where=~known)
     score = zncc(left, seen, window)
     np.copyto(score, np.nan, where=np.isnan(seen))
-    return score
+    return score[keep]
 
 
-def _best(scores: list[Future[np.ndarray]]) -> np.ndarray:
-    """The best of a view's :func:`_score` at each offset, taken in the order given
-    (each dropped once taken): (h, w) float32, NaN where no offset has a seen window."""
-    best = scores.pop(0).result()
-    while scores:
-        np.fmax(best, scores.pop(0).result(), out=best)
+def _best(scores: Scores, shape: tuple[int, ...]) -> np.ndarray:
+    """The best of a view's :func:`_scores` at each offset, band by band, taken in the
+    order given (each dropped once taken): ``shape`` float32, NaN where no offset has a
+    seen window."""
+    best = np.empty(shape, np.float32)
+    for band, futures in scores:
+        np.copyto(best[band], futures.pop(0).result())
+        while futures:
+            np.fmax(best[band], futures.pop(0).result(), out=best[band])
     return best
