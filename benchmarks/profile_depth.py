@@ -13,12 +13,20 @@ spread; ``--memory`` adds each stage's peak resident memory; ``--cpu`` gives eac
 stage's CPU seconds (the process's, all threads together) instead of its wall seconds,
 which a machine shared with other jobs moves far less; ``--busy`` adds, under each run's
 wall seconds, how many cores each stage kept busy on average (its CPU seconds over its
-wall seconds: 1.0 on 2 cores is one of them idle); ``--runnable`` adds how many of the
-run's threads wanted a core, on average, stage by stage (sampled every 2 ms from
-``/proc``: a thread running or waiting for a core counts, one blocked on the disk or a
-lock does not). A machine shared with other jobs stretches the stages but barely moves
-that count, which says what the run could keep busy on an idle machine (2.0 and more:
-two cores' worth). Run it against another
+wall seconds: 1.0 on 2 cores is one of them idle); ``--cores`` adds, run by run, each
+stage's CPU seconds and the wall seconds it would take on 1, 2, 4, 8 and 16 idle cores,
+projected from how the run's threads used the cores (below). A machine shared with other
+jobs stretches the stages, but barely moves the projection, which ``--busy`` cannot say.
+
+The projection samples every thread of the process every 2 ms (``/proc/self/task``:
+its CPU nanoseconds, and whether it is running or waiting for a core): in each interval
+the CPU the run's threads used, divided by as many of the N cores as there were threads
+that wanted one, is how long that interval's work takes on N cores; summed over a stage.
+Waits on the disk or on a lock count for nothing, so the write stage's fsyncs are left
+out. With ``OPENCV_FOR_THREADS_NUM=16`` the run has 16 threads (OpenCV's and rigkit's
+pools) on any machine: the projection then says what 16 cores would do with its pieces,
+memory bandwidth and caches aside. ``OPENCV_THREAD_POOL_ACTIVE_WAIT_WORKER=0`` keeps
+OpenCV's idle workers from counting as threads that want a core. Run it against another
 checkout with ``PYTHONPATH=/that/checkout`` to compare (docs/results.md).
 """
 
@@ -104,13 +112,17 @@ class RssSampler:
         return max((mb for t, mb in self.samples if t0 <= t <= t1), default=float("nan"))
 
 
-class RunnableSampler:
-    """How many of this process's threads (this sampler's own left out) are running or
-    waiting for a core (state R in ``/proc/self/task/*/stat``), every 2 ms in a thread,
-    as (perf_counter, count) pairs."""
+CORES = (1, 2, 4, 8, 16)
+"""The core counts :class:`CoreSampler` projects wall seconds for."""
+
+
+class CoreSampler:
+    """Every 2 ms in a thread, each of this process's threads (this sampler's own left
+    out): its CPU nanoseconds (``/proc/self/task/*/schedstat``) and whether it is running
+    or waiting for a core (state R), as (perf_counter, {thread: (ns, wants)})."""
 
     def __init__(self) -> None:
-        self.samples: list[tuple[float, int]] = []
+        self.samples: list[tuple[float, dict[str, tuple[int, bool]]]] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
@@ -118,33 +130,48 @@ class RunnableSampler:
     def _run(self) -> None:
         me = str(threading.get_native_id())
         while not self._stop.wait(0.002):
-            count = 0
+            threads = {}
             for task in os.listdir("/proc/self/task"):
                 if task == me:
                     continue
                 try:
+                    with open(f"/proc/self/task/{task}/schedstat") as stat:
+                        ns = int(stat.read().split()[0])
                     with open(f"/proc/self/task/{task}/stat") as stat:
                         state = stat.read().rpartition(")")[2].split()[0]
-                except OSError:  # the thread ended meanwhile
+                except (OSError, ValueError, IndexError):  # the thread ended meanwhile
                     continue
-                count += state == "R"
-            self.samples.append((time.perf_counter(), count))
+                threads[task] = (ns, state == "R")
+            self.samples.append((time.perf_counter(), threads))
 
     def stop(self) -> None:
         self._stop.set()
         self._thread.join()
 
-    def mean(self, t0: float, t1: float) -> float:
-        counts = [n for t, n in self.samples if t0 <= t <= t1]
-        return sum(counts) / len(counts) if counts else float("nan")
+    def project(self, t0: float, t1: float) -> tuple[float, list[float]]:
+        """The CPU seconds between ``t0`` and ``t1`` (perf_counter) and the wall seconds
+        that work would take on each of ``CORES`` idle cores (module docstring)."""
+        cpu, walls = 0.0, [0.0] * len(CORES)
+        inside = [sample for sample in self.samples if t0 <= sample[0] <= t1]
+        for (_, before), (_, after) in zip(inside, inside[1:], strict=False):
+            used = sum(ns - before.get(task, (0, False))[0] for task, (ns, _) in after.items())
+            wanting = sum(1 for task, (ns, running) in after.items()
+                          if running or ns > before.get(task, (0, False))[0])
+            cpu += used / 1e9
+            for i, cores in enumerate(CORES):
+                walls[i] += used / 1e9 / min(max(wanting, 1), cores)
+        return cpu, walls
 
 
-def _edges(times: dict[str, float], stages: dict[str, float]
+def _edges(start: float, times: dict[str, float], stages: dict[str, float]
            ) -> list[tuple[str, float, float]]:
-    """(name, start, end) in perf_counter seconds of reading the frames, each stage of
-    the pipeline (``stages`` of a :func:`_staged` wrapper on that clock), the time
-    until the outputs are written, and their writing (``times`` of :func:`_timed`)."""
-    edges = [("load", times["load@"], times["load@"] + times["load"])]
+    """(name, start, end) in perf_counter seconds of the command's start (from
+    ``start``: its imports in a first run, its checks) until the frames are read, their
+    reading, each stage of the pipeline (``stages`` of a :func:`_staged` wrapper on that
+    clock), the time until the outputs are written, and their writing (``times`` of
+    :func:`_timed`)."""
+    edges = [("start", start, times["load@"]),
+             ("load", times["load@"], times["load@"] + times["load"])]
     at = stages["start@"]
     for stage in STAGES:
         edges.append((stage, at, at + stages.get(stage, 0.0)))
@@ -152,6 +179,19 @@ def _edges(times: dict[str, float], stages: dict[str, float]
     edges.append(("until write", at, times["write@"]))
     edges.append(("write", times["write@"], times["write@"] + times["write"]))
     return edges
+
+
+def print_projection(cores: CoreSampler, edges: list[tuple[str, float, float]]) -> None:
+    """Each of ``edges``' stages: its CPU seconds, its wall seconds projected on each of
+    ``CORES`` idle cores and the cores it keeps busy on 2 (CPU over the projected wall);
+    and the whole run's (the run's start to its end)."""
+    print(f"    {'stage':<13} {'CPU s':>6}  projected wall s on "
+          + "/".join(map(str, CORES)) + " cores  (busy on 2)")
+    for name, t0, t1 in [*edges, ("whole", edges[0][1], edges[-1][2])]:
+        cpu, walls = cores.project(t0, t1)
+        busy = cpu / walls[1] if walls[1] > 0 else 0.0
+        print(f"    {name:<13} {cpu:6.3f}  " + " ".join(f"{w:6.3f}" for w in walls)
+              + f"  ({busy:.2f})")
 
 
 def depth_parser(description: str, out: str) -> argparse.ArgumentParser:
@@ -186,9 +226,9 @@ def main() -> int:
                     help="CPU seconds of the process per stage instead of wall seconds")
     ap.add_argument("--busy", action="store_true",
                     help="under each run's wall seconds, the cores each stage kept busy")
-    ap.add_argument("--runnable", action="store_true",
-                    help="under each run's wall seconds, its threads that wanted a core, "
-                         "stage by stage (mean)")
+    ap.add_argument("--cores", action="store_true",
+                    help="after each run, each stage's CPU seconds and its wall seconds "
+                         "projected on 1, 2, 4, 8 and 16 idle cores")
     args = ap.parse_args()
     if args.busy and args.cpu:
         ap.error("--busy goes with wall seconds: leave out --cpu")
@@ -212,7 +252,7 @@ def main() -> int:
         _timed(depthrun, "load_capture", cpu_times, "load", time.process_time)
         _timed(files, "write_together", cpu_times, "write", time.process_time)
     wall_stages: dict[str, float] = {}
-    if args.memory or args.runnable:
+    if args.memory or args.cores:
         _staged(depthrun, wall_stages, time.perf_counter)
     argv = depth_argv(args)
     header = (f"{'run':>3} {'import':>6} {'load':>5} "
@@ -223,15 +263,15 @@ def main() -> int:
     for run in range(args.repeat):
         times.clear()
         cpu_times.clear()
-        t1, c1 = clock(), time.process_time()
+        t1, c1, started = clock(), time.process_time(), time.perf_counter()
         sampler = RssSampler() if args.memory else None
-        runnable = RunnableSampler() if args.runnable else None
+        cores = CoreSampler() if args.cores else None
         if profiler is not None:
             profiler.enable()
         rigkit_main(argv)
         if profiler is not None:
             profiler.disable()
-        for each in (sampler, runnable):
+        for each in (sampler, cores):
             if each is not None:
                 each.stop()
         total = clock() - t1 + (imports if run == 0 else 0.0)
@@ -252,12 +292,9 @@ def main() -> int:
                 f"{c / w if w > 0 else 0.0:{5 if i in (0, len(cpu) - 1) else 6}.2f}"
                 for i, (c, w) in enumerate(zip(cpu, wall, strict=True)))
                 + f" {'':>5} {cpu_total / (clock() - t1):6.2f}")
-        edges = _edges(times, wall_stages) if args.memory or args.runnable else []
-        if runnable is not None:
-            print(f"{'':>3} {'wanted':>6} " + " ".join(
-                f"{runnable.mean(a, b):{5 if i in (0, len(edges) - 1) else 6}.2f}"
-                for i, (_, a, b) in enumerate(edges) if _ != "until write")
-                + f" {'':>5} {runnable.mean(edges[0][1], edges[-1][2]):6.2f}")
+        edges = _edges(started, times, wall_stages) if args.memory or args.cores else []
+        if cores is not None:
+            print_projection(cores, edges)
         if sampler is not None:
             print("    peak RSS MB: " + ", ".join(
                 f"{name} {sampler.peak(a, b):.0f}" for name, a, b in edges))

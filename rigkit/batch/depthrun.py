@@ -20,6 +20,7 @@ and what to record out.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -126,12 +127,16 @@ def run_depth(
         warnings = capture_warnings(profile, firsts, force)
     report("reading frames", 0.1)
     geometry = profile.geometry()
-    with ViewPool() as pool:  # grey.png is compressed while the depth is found
-        grey = pool.submit(left_grey, loaded.images[0])
-        result = estimate_depth(
-            *loaded.images, geometry, settings=profile.pipeline_settings(),
-            progress=lambda stage, f: report(stage, 0.1 + 0.8 * f),
-        )
+    grey: list[Future[bytes]] = []
+    with ViewPool() as pool:
+        def stage_done(stage: str, fraction: float) -> None:
+            if not grey:  # grey.png is compressed after the views' matching, beside the
+                # lens fit and the stages after it, which leave cores idle
+                grey.append(pool.submit(left_grey, loaded.images[0]))
+            report(stage, 0.1 + 0.8 * fraction)
+
+        result = estimate_depth(*loaded.images, geometry, settings=profile.pipeline_settings(),
+                                progress=stage_done)
     length = min(len(bursts[pos]) for pos in POSITIONS)
     found = [result.offset_warning(length)]
     if loaded.shimmer is not None:
@@ -148,5 +153,5 @@ def run_depth(
         burst_length=length,
         warnings=(*warnings, *shortfalls),
         shortfalls=shortfalls,
-        grey_png=grey.result(),
+        grey_png=grey[0].result(),
     )

@@ -303,9 +303,10 @@ def estimate_depth(
         depth[black] = np.nan
         no_surface |= black
         filled &= ~black
-    sigma = _depth_sigma(depth, filled, rig, amb, s)
-    known = depth[np.isfinite(depth)]  # np.nanmedian's value, at half its cost
-    z_median = float(np.median(known)) if known.size else float("nan")
+    with ViewPool() as pool:  # the median while sigma is found
+        median = pool.submit(_median, depth)
+        sigma = _depth_sigma(depth, filled, rig, amb, s)
+        z_median = median.result()
     offset_fraction = z_median * amb.offset_sigma_px / (rig.focal_px * rig.baseline_lr_m)
     lap("depth", 1.0)
     return DepthResult(
@@ -378,6 +379,13 @@ def _ideal(m: Matches, lens: Lens, other_lens: Lens | None = None) -> Matches:
     if lens.identity and other_lens.identity:
         return m
     return replace(m, left=lens.to_ideal(m.left), other=other_lens.to_ideal(m.other))
+
+
+def _median(depth: np.ndarray) -> float:
+    """The median of the finite values of ``depth`` (NaN where there is none):
+    np.nanmedian's value, at half its cost."""
+    known = depth[np.isfinite(depth)]
+    return float(np.median(known)) if known.size else float("nan")
 
 
 def _depth_sigma(
