@@ -64,7 +64,7 @@ def median(frames: Sequence[np.ndarray], rows: int = 32, pool: ViewPool | None =
     whose result the middle never reads (:func:`_median_network`: 14 of 20 for 5
     frames). :func:`numpy.median` over a stacked axis
     selects within each pixel's N values one pixel at a time: at 16 MP this is ~25x
-    faster for 5 frames and ~13x for 16. The two halves of the rows run in ``pool``'s
+    faster for 5 frames and ~13x for 16. Pieces of ``PIECE_ROWS`` rows run in ``pool``'s
     threads where one is given.
     """
     n, mid = len(frames), len(frames) // 2
@@ -72,15 +72,19 @@ def median(frames: Sequence[np.ndarray], rows: int = 32, pool: ViewPool | None =
     out = np.empty(frames[0].shape, np.float32)
     network = _median_network(n)
 
-    def blocks(r0: int, r1: int) -> None:
-        for b0 in range(r0, r1, rows):
-            _median_block(frames, out, slice(b0, min(b0 + rows, r1)), network, mid)
+    def blocks(r0: int) -> None:
+        for b0 in range(r0, min(r0 + PIECE_ROWS, height), rows):
+            _median_block(frames, out, slice(b0, min(b0 + rows, r0 + PIECE_ROWS, height)),
+                          network, mid)
 
-    # Halves of the rows in threads (a pool's, where given): each block is its own.
-    half = -(-height // (2 * rows)) * rows
+    # Pieces of rows in threads (a pool's, where given): each block is its own.
     with nullcontext(pool) if pool is not None else ViewPool(1) as run:
-        run.map(blocks, (0, half), (half, height))
+        run.map(blocks, range(0, height, PIECE_ROWS))
     return out
+
+
+PIECE_ROWS = 256
+"""Rows of :func:`median`'s pieces, spread over a pool's threads."""
 
 
 def _median_network(n: int) -> list[tuple[int, bool, bool]]:
