@@ -256,11 +256,12 @@ def local_contrast(
     spares a copy. Returns (H, W) uint8.
 
     Computed in strips of ``_STRIP_ROWS`` rows, so that no full-size float image but
-    ``image`` itself is made and each strip's steps run in the cache: the halving
-    averages 2x2 blocks, which strips of an even number of rows share with the whole,
-    and the doubling is given one more row of the half-size copy each side of a strip,
-    so every pixel comes out as from the whole image, bit for bit. Images with an odd
-    side are taken whole.
+    ``image`` itself is made and each strip's steps run in the cache (pieces of
+    ``_STRIPS_A_PIECE`` strips side by side in a :class:`rigkit.core.threads.ViewPool`):
+    the halving averages 2x2 blocks, which strips of an even number of rows share with
+    the whole, and the doubling is given one more row of the half-size copy each side of
+    a strip, so every pixel comes out as from the whole image, bit for bit. Images with
+    an odd side are taken whole.
     """
     h, w = image.shape
     outside = np.isnan(image)
@@ -273,16 +274,22 @@ def local_contrast(
     step = _STRIP_ROWS if h % 2 == 0 and w % 2 == 0 else h
     parts = 3 if cut else 2  # the values, their squares, and where they are seen
     halves = [np.empty((half[1], half[0]), np.float32) for _ in range(parts)]
-    for r0 in range(0, h, step):
-        rows = slice(r0, min(r0 + step, h))
-        size = (half[0], half[1] if step == h else (rows.stop - r0) // 2)
-        shrunk = slice(r0 // 2, r0 // 2 + size[1])
-        v = values[rows]
-        strip = [v, cv2.multiply(v, v)]
-        if cut:
-            strip.append(np.logical_not(outside[rows]).astype(np.float32))
-        for out, a in zip(halves, strip, strict=True):
-            out[shrunk] = cv2.resize(a, size, interpolation=cv2.INTER_AREA)
+    pieces = range(0, h, step * _STRIPS_A_PIECE)  # strips side by side, in pieces
+
+    def shrink(p0: int) -> None:
+        for r0 in range(p0, min(p0 + step * _STRIPS_A_PIECE, h), step):
+            rows = slice(r0, min(r0 + step, h))
+            size = (half[0], half[1] if step == h else (rows.stop - r0) // 2)
+            shrunk = slice(r0 // 2, r0 // 2 + size[1])
+            v = values[rows]
+            strip = [v, cv2.multiply(v, v)]
+            if cut:
+                strip.append(np.logical_not(outside[rows]).astype(np.float32))
+            for out, a in zip(halves, strip, strict=True):
+                out[shrunk] = cv2.resize(a, size, interpolation=cv2.INTER_AREA)
+
+    with ViewPool() as pool:
+        pool.map(shrink, pieces)
     box = (window // 2 | 1, window // 2 | 1)
     mean, square = (cv2.boxFilter(a, -1, box) for a in halves[:2])
     if cut:
@@ -290,26 +297,33 @@ def local_contrast(
         mean, square = cv2.divide(mean, seen), cv2.divide(square, seen)
     spread = cv2.sqrt(np.maximum(cv2.subtract(square, cv2.multiply(mean, mean)), np.float32(1e-3)))
     out = np.empty((h, w), np.uint8)
-    for r0 in range(0, h, step):
-        r1 = min(r0 + step, h)
-        if step == h:
-            s0, s1, first = 0, half[1], 0
-            size = (w, h)
-        else:  # the half-size rows this strip's doubling reads, one more each side
-            s0, s1 = max(r0 // 2 - 1, 0), min(r1 // 2 + 1, half[1])
-            first, size = r0 - 2 * s0, (w, 2 * (s1 - s0))
-        m, sd = (cv2.resize(a[s0:s1], size, interpolation=cv2.INTER_LINEAR)[first:first + r1 - r0]
-                 for a in (mean, spread))
-        z = cv2.subtract(values[r0:r1], m)
-        cv2.divide(z, sd, dst=z, scale=32.0)
-        cv2.add(z, 128.0, dst=out[r0:r1], dtype=cv2.CV_8U)  # type: ignore[call-overload]  # rounds, saturates
-        if cut:
-            np.copyto(out[r0:r1], 128, where=outside[r0:r1])  # 4x a boolean index
+
+    def normalise(p0: int) -> None:
+        for r0 in range(p0, min(p0 + step * _STRIPS_A_PIECE, h), step):
+            r1 = min(r0 + step, h)
+            if step == h:
+                s0, s1, first = 0, half[1], 0
+                size = (w, h)
+            else:  # the half-size rows this strip's doubling reads, one more each side
+                s0, s1 = max(r0 // 2 - 1, 0), min(r1 // 2 + 1, half[1])
+                first, size = r0 - 2 * s0, (w, 2 * (s1 - s0))
+            m, sd = (cv2.resize(a[s0:s1], size, interpolation=cv2.INTER_LINEAR)
+                     [first:first + r1 - r0] for a in (mean, spread))
+            z = cv2.subtract(values[r0:r1], m)
+            cv2.divide(z, sd, dst=z, scale=32.0)
+            cv2.add(z, 128.0, dst=out[r0:r1], dtype=cv2.CV_8U)  # type: ignore[call-overload]  # rounds, saturates
+            if cut:
+                np.copyto(out[r0:r1], 128, where=outside[r0:r1])  # 4x a boolean index
+
+    with ViewPool() as pool:
+        pool.map(normalise, pieces)
     return out
 
 
 _STRIP_ROWS = 32
 """Rows of :func:`local_contrast`'s strips (even)."""
+_STRIPS_A_PIECE = 8
+"""Strips of :func:`local_contrast` in each piece its threads take: 256 rows."""
 
 
 @deterministic
