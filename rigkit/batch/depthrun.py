@@ -50,7 +50,7 @@ class DepthRun:
     shortest burst); ``warnings``: one line each, for the user and depth.json;
     ``grey_png``: the left image the depth map lies on as an 8-bit grey PNG
     (``grey.png`` beside the depth map, the point colours of ``rigkit export``;
-    :func:`left_grey`); ``shortfalls``: those of the warnings that say the capture misses
+    :func:`encode_grey`); ``shortfalls``: those of the warnings that say the capture misses
     the goal (the disparity offset alone leaves more than 0.3 % of depth; a burst shorter
     than the measured shimmer calls for), which keep a verdict from saying "done"."""
 
@@ -88,7 +88,7 @@ class DepthRun:
         }
 
 
-def left_grey(left: np.ndarray) -> bytes:
+def encode_grey(left: np.ndarray) -> bytes:
     """The ``left`` image ((H, W) float32 grey, 0-255) as an 8-bit grey PNG."""
     return encode_png(np.clip(np.rint(left), 0, 255).astype(np.uint8))
 
@@ -132,7 +132,7 @@ def run_depth(
         def stage_done(stage: str, fraction: float) -> None:
             if not grey:  # grey.png is compressed after the views' matching, beside the
                 # lens fit and the stages after it, which leave cores idle
-                grey.append(pool.submit(left_grey, loaded.images[0]))
+                grey.append(pool.submit(encode_grey, loaded.images[0]))
             report(stage, 0.1 + 0.8 * fraction)
 
         result = estimate_depth(*loaded.images, geometry, settings=profile.pipeline_settings(),

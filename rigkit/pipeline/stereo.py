@@ -31,7 +31,7 @@ class StereoMatcher(Protocol):
 
 BAND_ROWS = 384
 """Rows of the stereo canvas each band of :class:`SGBM` gives (:func:`bands`): a
-full-resolution canvas (~1730 rows at half scale) is 4 bands, 8 passes side by side."""
+full-resolution canvas (~1730 rows at half scale) is 5 bands, 10 passes side by side."""
 BAND_ABOVE = 32
 """Rows above its own that a band is matched with and then drops: semi-global matching's
 paths from the top start there, so that they have settled by the band's first row.
