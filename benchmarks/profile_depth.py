@@ -104,6 +104,11 @@ class RssSampler:
                 pages = int(statm.read().split()[1])
                 self.samples.append((time.perf_counter(), pages * self._page_mb))
 
+    @property
+    def thread_id(self) -> int | None:
+        """The native id of the thread that samples."""
+        return self._thread.native_id
+
     def stop(self) -> None:
         self._stop.set()
         self._thread.join()
@@ -117,22 +122,24 @@ CORES = (1, 2, 4, 8, 16)
 
 
 class CoreSampler:
-    """Every 2 ms in a thread, each of this process's threads (this sampler's own left
-    out): its CPU nanoseconds (``/proc/self/task/*/schedstat``) and whether it is running
-    or waiting for a core (state R), as (perf_counter, {thread: (ns, wants)})."""
+    """Every 2 ms in a thread, each of this process's threads (this sampler's own and
+    those of ``ignore``, native ids, left out): its CPU nanoseconds
+    (``/proc/self/task/*/schedstat``) and whether it is running or waiting for a core
+    (state R), as (perf_counter, {thread: (ns, wants)})."""
 
-    def __init__(self) -> None:
+    def __init__(self, ignore: tuple[int | None, ...] = ()) -> None:
         self.samples: list[tuple[float, dict[str, tuple[int, bool]]]] = []
+        self._ignore = {str(tid) for tid in ignore}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
-        me = str(threading.get_native_id())
+        self._ignore.add(str(threading.get_native_id()))
         while not self._stop.wait(0.002):
             threads = {}
             for task in os.listdir("/proc/self/task"):
-                if task == me:
+                if task in self._ignore:
                     continue
                 try:
                     with open(f"/proc/self/task/{task}/schedstat") as stat:
@@ -265,7 +272,8 @@ def main() -> int:
         cpu_times.clear()
         t1, c1, started = clock(), time.process_time(), time.perf_counter()
         sampler = RssSampler() if args.memory else None
-        cores = CoreSampler() if args.cores else None
+        cores = (CoreSampler(() if sampler is None else (sampler.thread_id,))
+                 if args.cores else None)
         if profiler is not None:
             profiler.enable()
         rigkit_main(argv)

@@ -28,22 +28,14 @@ from rigkit.capture.imagesize import check_size
 from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import POSITIONS
 from rigkit.core.files import file_sha256
-from rigkit.core.threads import view_threads
 from rigkit.errors import InputError
 from rigkit.pipeline.burst import stack_burst
 from rigkit.pipeline.shimmer import Shimmer, burst_shimmer
 
-DECODERS = (3, 5)
-"""The fewest and the most worker threads decoding frames side by side (as many as
-OpenCV's threads in between: :func:`decoders`), and frames decoded ahead: three, so
-that a triple's frames decode at once; five at most, since each decoded 16 MP frame
-holds 64 MB while a burst is stacked."""
-
-
-def decoders() -> int:
-    """Frames decoded side by side (:data:`DECODERS`)."""
-    least, most = DECODERS
-    return min(max(view_threads(), least), most)
+DECODERS = 3
+"""Worker threads decoding frames, side by side, and frames decoded ahead: a triple's
+three at once. No more on a machine of more cores: each decoded 16 MP frame holds 64 MB
+while a burst is stacked (five decoders took a 5-frame burst to 1.64 GB on 16 threads)."""
 
 
 @dataclass(frozen=True)
@@ -152,8 +144,7 @@ def load_capture(
     linear = is_raw(bursts["left"][0].path)
     expected, whose = resolution, f"the {rig_name} is for"
     greys, shimmer = [], None
-    ahead = decoders()
-    pool = ThreadPoolExecutor(max_workers=ahead, thread_name_prefix="rigkit-decode")
+    pool = ThreadPoolExecutor(max_workers=DECODERS, thread_name_prefix="rigkit-decode")
 
     def decode(position: str) -> list[tuple[FrameFile, Future[np.ndarray]]]:
         return [(frame, pool.submit(load_linear_grey, frame.path, cache_dir, frame.sha256,
@@ -164,9 +155,9 @@ def load_capture(
     queued: dict[str, list[tuple[FrameFile, Future[np.ndarray]]]] = {}
 
     def top_up() -> None:
-        """The next positions' frames decoded ahead while fewer than ``ahead`` frames
-        are on their way (single frames: every position at once)."""
-        while (sum(map(len, queued.values())) < ahead
+        """The next positions' frames decoded ahead while fewer than DECODERS frames are
+        on their way (single frames: every position at once)."""
+        while (sum(map(len, queued.values())) < DECODERS
                and (position := next(upcoming, None)) is not None):
             queued[position] = decode(position)
 
