@@ -55,6 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     tune_for_images()  # freed image-sized arrays reused, no huge-page stalls: ~1.4 s of a triple
     try:
         with _quiet_libraries():
+            _check_outputs(parser, args)
             code: int = _runner(args.runner)(args)
     except RigkitError as exc:
         print(f"rigkit {args.command}: error: {exc}", file=sys.stderr)
@@ -69,6 +70,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
         return 2
     return code
+
+
+def _check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Every output the command line names (an option of an output type,
+    :mod:`rigkit.commands`) checked by the one rule for outputs
+    (:mod:`rigkit.core.outputs`) before the command starts."""
+    from rigkit.commands import output_values
+    from rigkit.core.outputs import CHECKS
+
+    for option, kind, path in output_values(parser, args):
+        CHECKS[kind](path, option)
 
 
 def _runner(path: str) -> Callable[[argparse.Namespace], int]:

@@ -221,7 +221,8 @@ def repair_session(path: Path) -> None:
     except InputError:  # derived and damaged: the next run replaces it; it blocks nothing
         return
     log = path / LOG_NAME
-    logged = {row.run_id for row in read_rows(log)} if log.is_file() else set()
+    damaged: list[str] = []  # said by what reads the log; the repair needs the run ids
+    logged = {row.run_id for row in read_rows(log, damaged)} if log.is_file() else set()
     missing = [row for row in rows if row.run_id not in logged]
     if missing:
         append_rows(log, missing)

@@ -256,7 +256,7 @@ def run_metadata(session_path: Path) -> dict[str, Any] | None:
     """The latest run's ``results/depth.json`` as a mapping; None where the session has
     none that can be read (missing, damaged, or a link or FIFO, which are not opened)."""
     try:
-        meta = json.loads(read_regular(session_path / RESULTS_DIR / "depth.json"))
+        meta = json.loads(read_regular(session_path / RESULTS_DIR / "depth.json", 16 << 20))
     except (OSError, ValueError, InputError):
         return None
     return meta if isinstance(meta, dict) else None

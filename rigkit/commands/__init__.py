@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -54,3 +55,58 @@ def count(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
     return value
+
+
+def output_file(text: str) -> Path:
+    """An argparse type: a file the command writes (``--out D.npy``). ``rigkit.cli``
+    checks every option of this type before the command runs, by the one rule for
+    outputs (:mod:`rigkit.core.outputs`)."""
+    return Path(text)
+
+
+def output_folder(text: str) -> Path:
+    """An argparse type: a folder the command writes into or creates (as
+    :func:`output_file`)."""
+    return Path(text)
+
+
+def output_log(text: str) -> Path:
+    """An argparse type: a log the command appends to (as :func:`output_file`)."""
+    return Path(text)
+
+
+OUTPUT_KINDS = {output_file: "file", output_folder: "folder", output_log: "log"}
+"""Each output type and the kind of output it declares (:data:`rigkit.core.outputs.CHECKS`)."""
+
+
+def output_values(parser: argparse.ArgumentParser, args: argparse.Namespace
+                  ) -> list[tuple[str, str, Path]]:
+    """The outputs the parsed ``args`` name: (option as the user wrote it, kind, path)
+    for every argument of an output type in the subcommands chosen, in ``parser``'s
+    order; options not given (None) are left out."""
+    found = []
+    for action in _chosen_actions(parser, args):
+        kind = OUTPUT_KINDS.get(action.type)  # type: ignore[arg-type]
+        value = getattr(args, action.dest, None)
+        if kind is None or value is None:
+            continue
+        name = action.option_strings[-1] if action.option_strings else \
+            (action.metavar if isinstance(action.metavar, str) else action.dest).upper()
+        for path in value if isinstance(value, list) else [value]:
+            found.append((name, kind, path))
+    return found
+
+
+def _chosen_actions(parser: argparse.ArgumentParser, args: argparse.Namespace
+                    ) -> list[argparse.Action]:
+    """The actions of ``parser`` and of each subparser ``args`` chose, top down."""
+    actions: list[argparse.Action] = []
+    current: argparse.ArgumentParser | None = parser
+    while current is not None:
+        actions += current._actions
+        chosen = None
+        for action in current._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                chosen = action.choices.get(str(getattr(args, action.dest, "")))
+        current = chosen
+    return actions

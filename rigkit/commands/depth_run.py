@@ -103,25 +103,26 @@ def _lensfun(text: str) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     from rigkit.batch.depthrun import run_depth
     from rigkit.capture.frames import frame_files
-    from rigkit.core.files import check_not_inputs, check_writable_folder, write_together
+    from rigkit.core.files import check_not_inputs, check_writable_folder
+    from rigkit.core.outputs import check_outputs, write_outputs
     from rigkit.core.progress import Progress
     from rigkit.errors import InputError
 
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
-    if args.out.is_dir():
-        raise InputError(f"--out {args.out}: a folder; give a file name such as depth.npy")
     check_writable_folder(args.out.parent, f"--out {args.out}")
+    names = _output_names(args.out, args.preview)
+    check_outputs(args.out.parent, names, "--out")  # the files written beside it too
     rig = rig_source(args)
     bursts = frame_files({pos: getattr(args, pos) for pos in POSITIONS})
     read = [frame.path for frames in bursts.values() for frame in frames]
-    check_not_inputs([args.out.parent / name for name in _output_names(args.out, args.preview)],
+    check_not_inputs([args.out.parent / name for name in names],
                      read + ([args.rig] if args.rig is not None else []), f"--out {args.out}")
     task = args.left[0].name if args.left else "depth"  # no left frame: said by the run
     with Progress("depth", [task], quiet=args.quiet) as progress:
         run = run_depth(bursts, rig, force=args.force,
                         progress=lambda stage, f: progress.update(task, f, stage))
-    write_together(args.out.parent, _outputs(run, args.out, args.preview))
+    write_outputs(args.out.parent, _outputs(run, args.out, args.preview), "--out")
     print(_summary(run, args.out))
     for warning in run.warnings:
         print(f"warning: {warning}", file=sys.stderr)

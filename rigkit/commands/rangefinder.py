@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from rigkit.commands import count
+from rigkit.commands import count, output_log
 
 # What --help shows of rigkit.rangefinder, repeated here so that building the parser
 # does not import pyserial and the drivers (tests/commands/test_loading.py holds the
@@ -116,7 +116,8 @@ def _add_port_options(parser: argparse.ArgumentParser, *, timeout_help: str) -> 
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object per reading")
     parser.add_argument(
-        "--raw-log", metavar="FILE", help="append all raw serial traffic to FILE (for audit)"
+        "--raw-log", type=output_log, metavar="FILE",
+        help="append all raw serial traffic to FILE (for audit)"
     )
 
 
@@ -153,7 +154,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     _add_port_options(
         log, timeout_help="stop after S seconds without a reading (default: wait forever)"
     )
-    log.add_argument("--output", required=True, metavar="FILE", help="JSON-lines file to append to")
+    log.add_argument("--output", type=output_log, required=True, metavar="FILE",
+                     help="JSON-lines file to append to")
     log.add_argument("--count", type=count, metavar="N", help="stop after N readings")
     log.add_argument(
         "--interval",

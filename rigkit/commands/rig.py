@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count, finite
+from rigkit.commands import count, finite, output_file
 
 DEFAULT_RANGE_M = 300.0
 # The budget's defaults, repeated here so that --help does not import the pipeline they
@@ -137,7 +137,7 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     )
     calibrate.add_argument("sessions", metavar="SESSION", type=Path, nargs="+",
                            help="processed session folders of one rig")
-    calibrate.add_argument("--out", type=Path, required=True, help="the profile to write")
+    calibrate.add_argument("--out", type=output_file, required=True, help="the profile to write")
     calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
                            help="one laser reading's one-sigma error, m (default 0.3)")
     calibrate.add_argument("--force", action="store_true", help="overwrite --out")

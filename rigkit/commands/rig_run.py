@@ -18,7 +18,8 @@ from rigkit.rig.findings import Finding
 def run_calibrate(args: argparse.Namespace) -> int:
     """``rigkit rig calibrate``: 0 when the profile is written."""
     from rigkit.capture.session import check_outside
-    from rigkit.core.files import check_writable_folder, write_text
+    from rigkit.core.files import check_writable_folder
+    from rigkit.core.outputs import check_output_file, write_outputs
     from rigkit.errors import InputError
     from rigkit.reporting.scale import LASER_ACCURACY_M, format_calibration, sessions_targets
     from rigkit.rig.calibration import calibrated_profile, fit_scale
@@ -27,6 +28,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if args.out.suffix.lower() not in (".yaml", ".yml"):
         raise InputError(f"--out {args.out}: expected a .yaml file name for the profile")
     check_outside(args.out, args.sessions, f"--out {args.out}")
+    check_output_file(args.out, "--out")  # --force replaces only a profile rigkit wrote
     if args.out.exists() and not args.force:
         raise InputError(f"{args.out}: exists; give --force to overwrite it")
     check_writable_folder(args.out.parent, f"--out {args.out}")
@@ -38,7 +40,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
             f"{', '.join(str(s) for s in args.sessions)}: C_lb "
             f"{profile.baseline_lb.value_m:.4f} -> {profile.baseline_lb.value_m * fit.scale:.4f}"
             f" m" + ("" if fit.checked else " (unchecked: fewer than 3 targets)") + ".")
-    write_text(args.out, dump_rig(calibrated_profile(profile, fit, note)))
+    write_outputs(args.out.parent, {args.out.name: dump_rig(calibrated_profile(profile, fit,
+                                                                               note))}, "--out")
     print(f"wrote {args.out}; use it: rigkit session set-rig SESSION --rig {args.out}, "
           "then rigkit process SESSION")
     return 0

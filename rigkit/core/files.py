@@ -31,7 +31,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from rigkit.core.safefs import open_regular
+from rigkit.core.safefs import open_input, open_regular
 from rigkit.errors import InputError
 
 #: What :func:`write_file` writes: text (UTF-8), bytes, or an array (``.png``: BGR or
@@ -43,14 +43,13 @@ _RETIRED = "old"
 
 def file_sha256(path: Path) -> str:
     """Hex SHA-256 of a file's bytes, read in 1 MiB blocks; InputError naming the file
-    when it cannot be read."""
+    when it is no regular file (:func:`rigkit.core.safefs.open_input`) or cannot be
+    read."""
     digest = hashlib.sha256()
     try:
-        with Path(path).open("rb") as handle:
+        with os.fdopen(open_input(Path(path)), "rb") as handle:  # never a FIFO or device
             for block in iter(lambda: handle.read(1 << 20), b""):
                 digest.update(block)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
     return digest.hexdigest()
@@ -228,25 +227,30 @@ def fsync_folder(folder: Path) -> None:
             os.close(fd)
 
 
-def write_together(folder: Path, files: Mapping[str, Content]) -> None:
+def write_together(folder: Path, files: Mapping[str, Content],
+                   check: Callable[[Path], None] | None = None) -> None:
     """Write ``files`` (name -> content) into ``folder``: all of them into a hidden
     temporary folder inside it first, then each renamed into place, so a failure never
     leaves a mix of old and new outputs that looks complete. OSError if a write fails;
     nothing temporary is left behind either way. The files are encoded and written
     side by side (:class:`rigkit.core.threads.ViewPool`: a PNG is compressed while an
-    array is written); the first failure in ``files``' order is raised."""
+    array is written); the first failure in ``files``' order is raised. ``check``: as
+    for :func:`staged_files`."""
     from rigkit.core.threads import ViewPool
 
-    with staged_files(folder) as tmp, ViewPool() as pool:
+    with staged_files(folder, check) as tmp, ViewPool() as pool:
         pool.map(_write_new, [tmp / name for name in files], files.values())
 
 
 @contextlib.contextmanager
-def staged_files(folder: Path) -> Iterator[Path]:
+def staged_files(folder: Path, check: Callable[[Path], None] | None = None
+                 ) -> Iterator[Path]:
     """A hidden temporary folder inside ``folder`` to write several files into (streamed,
     by any writer); when the block ends normally each file is fsynced and renamed into
     ``folder``, replacing any of the same name. If the block raises, the temporary
-    folder and everything in it is removed and ``folder`` is left as it was."""
+    folder and everything in it is removed and ``folder`` is left as it was.
+    ``check(target)``, called for every target before the first rename, may refuse the
+    lot by raising (:mod:`rigkit.core.outputs`: a file that appeared meanwhile)."""
     folder = Path(folder)
     _remove_stale_staging(folder)
     with tempfile.TemporaryDirectory(dir=folder, prefix=f"{STAGING_PREFIX}{os.getpid()}-") as tmp:
@@ -254,6 +258,8 @@ def staged_files(folder: Path) -> Iterator[Path]:
         staged = sorted(Path(tmp).iterdir())
         for path in staged:
             _fsync_file(path)
+            if check is not None:
+                check(folder / path.name)
         for path in staged:
             os.replace(path, folder / path.name)
     fsync_folder(folder)

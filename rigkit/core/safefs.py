@@ -60,11 +60,62 @@ def open_regular(path: Path, flags: int, mode: int = 0o666) -> int:
     return fd
 
 
-def read_regular(path: Path) -> bytes:
-    """The bytes of the regular file ``path`` (:func:`open_regular`'s rule)."""
-    fd = open_regular(path, os.O_RDONLY)
+def read_regular(path: Path, limit: int, what: str = "this file") -> bytes:
+    """The bytes of the regular file ``path`` (:func:`open_regular`'s rule), at most
+    ``limit`` of them: a larger file is refused (:func:`too_large`, ``what`` saying
+    what it should be) before it is read."""
+    return _read_bounded(open_regular(path, os.O_RDONLY), path, limit, what)
+
+
+def too_large(path: Path, size: int, limit: int, what: str) -> InputError:
+    """The one line for a file larger than what it is read as can be."""
+    return InputError(f"{path}: {_amount(size)}, more than the {_amount(limit)} {what} can "
+                      "be; not read (is it the right file?)")
+
+
+def open_input(path: Path) -> int:
+    """A descriptor for reading the file ``path`` that the user named (links followed):
+    a regular file, else InputError saying what it is (no such file, a folder, a FIFO, a
+    device) before it is opened, and checked again on the open descriptor, which was
+    opened without blocking (a FIFO swapped in meanwhile would hang the read)."""
+    require_file(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        raise InputError(f"{path}: is {kind_of(info.st_mode)}, not a file")
+    fcntl.fcntl(fd, fcntl.F_SETFL, fcntl.fcntl(fd, fcntl.F_GETFL) & ~os.O_NONBLOCK)
+    return fd
+
+
+def read_input(path: Path, limit: int, what: str = "this file") -> bytes:
+    """The bytes of the file ``path`` the user named (:func:`open_input`), at most
+    ``limit`` (:func:`too_large` otherwise, before it is read)."""
+    return _read_bounded(open_input(path), path, limit, what)
+
+
+def _read_bounded(fd: int, path: Path, limit: int, what: str) -> bytes:
     with os.fdopen(fd, "rb") as handle:
-        return handle.read()
+        size = os.fstat(fd).st_size
+        if size > limit:
+            raise too_large(path, size, limit, what)
+        data = handle.read(limit + 1)
+    if len(data) > limit:  # it grew while read
+        raise too_large(path, len(data), limit, what)
+    return data
+
+
+def _amount(size: int) -> str:
+    """A number of bytes in words: ``3.0 GB``, ``64 MB``, ``900 bytes``."""
+    for unit, scale in (("GB", 2**30), ("MB", 2**20), ("KB", 2**10)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{size} bytes"
 
 
 def require_file(path: Path) -> None:

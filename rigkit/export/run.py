@@ -4,7 +4,8 @@ left camera's frame or, for a session that knows where its tripod stood, on the 
 The map is read once, in chunks of rows (:func:`rigkit.export.points.point_chunks`), and
 every point format is written from the same chunks; all files are staged in a hidden
 folder inside the output folder and renamed into place together at the end
-(:func:`rigkit.core.files.staged_files`), so a failure leaves no partial output.
+(:func:`rigkit.core.outputs.staged_outputs`), so a failure leaves no partial output, and
+never over a file rigkit did not write nor inside a session's own parts.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from rigkit.core.files import check_writable_folder, staged_files
+from rigkit.core.files import check_writable_folder
+from rigkit.core.outputs import check_output_folder, check_outputs, staged_outputs
 from rigkit.core.signals import terminate_as_interrupt
 from rigkit.errors import InputError
 from rigkit.export.georef import MAX_RESIDUAL_DEG, Georeference, georeference
@@ -86,14 +88,16 @@ def export_depth(source: DepthMap, out: Path, formats: Sequence[str], *, step: i
     if step < 1:
         raise InputError(f"--step {step}: expected at least 1")
     report = progress or (lambda stage, fraction: None)
+    names = [f"{source.name}.{fmt}" for fmt in formats]
+    check_output_folder(out, "--out")  # the rule for outputs (rigkit.core.outputs)
     check_writable_folder(out, f"--out {out}")
+    check_outputs(out, names, "--out")
     report("counting points", 0.0)
     count = count_points(source.depth, step)
     if count == 0 and set(formats) - {"tif"}:
         raise InputError(f"{source.name}: the depth map has no estimated pixel to export")
-    names = [f"{source.name}.{fmt}" for fmt in formats]
     try:
-        with terminate_as_interrupt(), staged_files(out) as staging:  # SIGTERM cleans up
+        with terminate_as_interrupt(), staged_outputs(out, names, "--out") as staging:
             clouds = [fmt for fmt in formats if fmt != "tif"]
             if clouds:
                 _write_clouds(source, staging, clouds, count, step, georef, report)

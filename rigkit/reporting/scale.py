@@ -20,6 +20,7 @@ import numpy as np
 
 from rigkit.capture import RESULTS_DIR, Session
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
+from rigkit.capture.imagesize import MAX_FRAME_PIXELS
 from rigkit.capture.session import run_metadata
 from rigkit.core.safefs import read_regular
 from rigkit.core.tables import render_table
@@ -31,6 +32,9 @@ LASER_ACCURACY_M = 0.3
 """One laser reading's one-sigma error, m, where nothing better is known: a handheld
 rangefinder's stated accuracy on a good target (a TruPulse's +-0.3 m)."""
 
+
+DEPTH_LIMIT = 4 * MAX_FRAME_PIXELS + (1 << 16)
+"""The largest ``depth.npy`` read, bytes: float32 at the largest frame, and its header."""
 
 SCALE_NOTICE = 0.001
 """A scale the lasers put further than this (and than 2 sigma) from the profile's is
@@ -56,7 +60,8 @@ def run_reference(session_path: Path) -> RunReference | None:
     median = meta.get("median_depth_m")
     if not isinstance(median, int | float):  # a run before depth.json recorded it
         try:
-            depth = np.load(io.BytesIO(read_regular(results / "depth.npy")))
+            depth = np.load(io.BytesIO(read_regular(results / "depth.npy", DEPTH_LIMIT,
+                                                    "a depth map")))
         except (OSError, ValueError, InputError):
             return None
         known = depth[np.isfinite(depth)]
