@@ -87,12 +87,9 @@ def check_output_file(path: Path, what: str) -> None:
     the module's rule."""
     path = Path(path)
     check_place(path, what)
-    try:
-        info = os.lstat(path)
-    except FileNotFoundError:
+    info = _lstat(path, what)
+    if info is None:
         return
-    except OSError as exc:
-        raise InputError(f"{what}: {path}: cannot look at it ({exc.strerror})") from None
     if stat.S_ISLNK(info.st_mode):
         raise InputError(f"{what}: {path} is a symbolic link; rigkit writes through no "
                          "link: remove it or give another name")
@@ -110,12 +107,9 @@ def check_output_folder(path: Path, what: str) -> None:
     or creates: not in a session's own parts, not a link, a folder where it exists."""
     path = Path(path)
     check_place(path, what)
-    try:
-        info = os.lstat(path)
-    except FileNotFoundError:
+    info = _lstat(path, what)
+    if info is None:
         return
-    except OSError as exc:
-        raise InputError(f"{what}: {path}: cannot look at it ({exc.strerror})") from None
     if stat.S_ISLNK(info.st_mode):
         raise InputError(f"{what}: {path} is a symbolic link; rigkit writes through no "
                          "link: give the folder itself")
@@ -128,9 +122,8 @@ def check_output_log(path: Path, what: str) -> None:
     regular file it created there as a log (its inode in the ledger)."""
     path = Path(path)
     check_place(path, what)
-    try:
-        info = os.lstat(path)
-    except FileNotFoundError:
+    info = _lstat(path, what)
+    if info is None:
         return
     if stat.S_ISLNK(info.st_mode) or not stat.S_ISREG(info.st_mode):
         raise InputError(f"{what}: {path} is {kind_of(info.st_mode)}, not a log rigkit "
@@ -139,6 +132,19 @@ def check_output_log(path: Path, what: str) -> None:
         raise InputError(f"{what}: {path} exists and is no log rigkit started (see "
                          f"{LEDGER} in its folder): rigkit appends to no file of yours; "
                          "give a new file")
+
+
+def _lstat(path: Path, what: str) -> os.stat_result | None:
+    """``path``'s own status (a link's, not its target's); None where nothing is there
+    yet; InputError naming ``what`` where it cannot be there (its folder is a file)."""
+    try:
+        return os.lstat(path)
+    except FileNotFoundError:
+        return None
+    except NotADirectoryError:
+        raise InputError(f"{what}: {path}: {path.parent} is a file, not a folder") from None
+    except OSError as exc:
+        raise InputError(f"{what}: {path}: cannot look at it ({exc.strerror})") from None
 
 
 CHECKS = {"file": check_output_file, "folder": check_output_folder, "log": check_output_log}

@@ -82,9 +82,9 @@ def test_calibrate_refuses_what_it_cannot_use(
     two = [str(short_session), str(processed_session)]  # C_lb 1.97 and 2.00 m
     assert main(["rig", "calibrate", *two, "--out", str(out)]) == 2
     assert "its rig differs" in capsys.readouterr().err
-    out.write_text("keep me")
-    assert main(["rig", "calibrate", str(short_session), "--out", str(out)]) == 2
-    assert "exists; give --force" in capsys.readouterr().err
+    out.write_text("keep me")  # not rigkit's: not even with --force (test_outputs.py)
+    assert main(["rig", "calibrate", str(short_session), "--out", str(out), "--force"]) == 2
+    assert "was not written by rigkit" in capsys.readouterr().err
     assert out.read_text() == "keep me" and not list(tmp_path.glob("*.tmp*"))
 
 

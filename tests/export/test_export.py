@@ -56,8 +56,8 @@ def test_the_bundled_example_as_ply_las_laz_and_tif(
         meta = tif.shaped_metadata[0]
     assert np.array_equal(bands[0], depth, equal_nan=True)
     assert meta["bands"] == ["depth_m", "sigma_m"] and meta["rig"] == "synthetic-seed-7"
-    assert sorted(p.name for p in out.iterdir()) == [
-        "example.las", "example.laz", "example.ply", "example.tif"]
+    assert sorted(p.name for p in out.iterdir()) == [  # and the ledger of what rigkit wrote
+        ".rigkit-outputs", "example.las", "example.laz", "example.ply", "example.tif"]
 
 
 def test_points_are_the_pixels_back_projected_as_the_laser_comparison_does(
@@ -150,8 +150,8 @@ def test_a_failure_leaves_no_partial_output(
 ) -> None:
     session = new_session(tmp_path)
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "geo.ply").write_bytes(b"the previous export")
+    export_path(session, out, ["ply"])  # the previous export
+    before = (out / "geo.ply").read_bytes()
     monkeypatch.setattr("rigkit.export.points.CHUNK_POINTS", 1000)
     calls = []
 
@@ -163,8 +163,8 @@ def test_a_failure_leaves_no_partial_output(
     monkeypatch.setattr("rigkit.export.las.LasWriter.write", full_disk)
     with pytest.raises(InputError, match="cannot write the export .No space left on device."):
         export_path(session, out, ["ply", "las"])
-    assert [p.name for p in out.iterdir()] == ["geo.ply"]  # no .las, no temporary folder
-    assert (out / "geo.ply").read_bytes() == b"the previous export"
+    assert sorted(p.name for p in out.iterdir()) == [".rigkit-outputs", "geo.ply"]  # no .las,
+    assert (out / "geo.ply").read_bytes() == before  # no temporary folder
 
 
 @pytest.mark.parametrize(("setup", "message"), [
