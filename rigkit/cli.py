@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterator, Sequence
 from rigkit import __version__
 from rigkit.core.memory import tune_for_images
 from rigkit.core.signals import Terminated
+from rigkit.core.tables import visible
 from rigkit.errors import RigkitError, environment_message
 
 # Subcommand modules under rigkit.commands, in the order --help lists them. Each holds
@@ -58,7 +59,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             _check_outputs(parser, args)
             code: int = _runner(args.runner)(args)
     except RigkitError as exc:
-        print(f"rigkit {args.command}: error: {exc}", file=sys.stderr)
+        print(f"rigkit {args.command}: error: {visible(str(exc), lines=False)}",
+              file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         return _interrupted(f"rigkit {args.command}", exc)
@@ -67,7 +69,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.close()
         return 0
     except OSError as exc:  # the machine's, not the input's: a full disk, a read-only folder
-        print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
+        print(f"rigkit {args.command}: error: {visible(environment_message(exc), lines=False)}",
+              file=sys.stderr)
         return 2
     return code
 

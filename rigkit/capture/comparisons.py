@@ -19,7 +19,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-from rigkit.capture.session import MAX_SIDE_PX
+from rigkit.capture.session import MAX_SIDE_PX, is_plain_name
 from rigkit.core.files import append_whole
 from rigkit.core.safefs import read_regular
 from rigkit.errors import InputError
@@ -181,6 +181,10 @@ def _check_row(row: Comparison) -> None:
     for ranges that do not give it."""
     if row.status not in _STATUSES:
         raise ValueError(f"status {row.status!r} is none of {', '.join(_STATUSES)}")
+    if not (is_plain_name(row.session) and is_plain_name(row.target)):
+        raise ValueError("the session or target is no name rigkit gives (a plain name)")
+    if not (row.run_id.isprintable() and row.time_utc.isprintable()):
+        raise ValueError("the run id or time holds characters that are not printable")
     if not (abs(row.u) <= MAX_SIDE_PX and abs(row.v) <= MAX_SIDE_PX
             and 1 <= row.window_px <= MAX_SIDE_PX):
         raise ValueError("the target's pixel or window is not a position")

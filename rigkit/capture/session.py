@@ -493,8 +493,13 @@ def _plain_name(value: Any, key: KeyPath) -> str:
     return name
 
 
+def is_plain_name(name: str) -> bool:
+    """Whether ``name`` is a plain name (:func:`check_name`'s rule)."""
+    return _NAME.match(name) is not None
+
+
 def check_name(name: str, where: str) -> None:
-    if not _NAME.match(name):
+    if not is_plain_name(name):
         raise InputError(
             f"{where}: {name!r} is not a usable name (letters, digits, '.', '_', '-'; "
             "starting with a letter or digit)"

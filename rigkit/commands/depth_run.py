@@ -106,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.core.files import check_not_inputs, check_writable_folder
     from rigkit.core.outputs import check_outputs, write_outputs
     from rigkit.core.progress import Progress
+    from rigkit.core.tables import visible
     from rigkit.errors import InputError
 
     if args.out.suffix != ".npy":
@@ -125,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     write_outputs(args.out.parent, _outputs(run, args.out, args.preview), "--out")
     print(_summary(run, args.out))
     for warning in run.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+        print(f"warning: {visible(warning, lines=False)}", file=sys.stderr)
     return 0
 
 

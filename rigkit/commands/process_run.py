@@ -9,6 +9,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from rigkit.core.tables import visible
+
 
 def run(args: argparse.Namespace) -> int:
     from rigkit.batch import new_run_id
@@ -35,14 +37,14 @@ def run(args: argparse.Namespace) -> int:
         def finished(outcome: Any) -> None:
             progress.done(names[outcome.path])
             for line in _outcome_lines(outcome):
-                progress.print(line)
+                progress.print(visible(line, lines=False))
 
         outcomes = process(run_id, update, finished)
     failed = [o for o in outcomes if not o.ok]
     print(f"run {run_id}: {len(outcomes) - len(failed)} processed, {len(failed)} failed "
           f"({progress.elapsed():.1f} s)")
     for outcome in failed:
-        print(f"  FAILED {_reason(outcome)}")
+        print(f"  FAILED {visible(_reason(outcome), lines=False)}")
     return 1 if failed else 0
 
 

@@ -23,6 +23,7 @@ def _formats(text: str) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from rigkit.capture.comparisons import csv_text
+    from rigkit.core.tables import visible
     from rigkit.errors import InputError
     from rigkit.reporting.plots import plot_error_vs_range, plot_estimate_vs_laser, render
     from rigkit.reporting.scale import session_scale_note
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     torn: list[str] = []
     rows = collect(args.sessions, all_runs=args.all_runs, torn=torn)
     for problem in torn:
-        print(f"warning: {problem}", file=sys.stderr)
+        print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
     if not rows:
         raise InputError(f"no comparisons in {', '.join(map(str, args.sessions))} (an empty "
                          "log, or every row damaged): nothing to report; rigkit process a "

@@ -8,6 +8,8 @@ import json
 import sys
 from typing import Any
 
+from rigkit.core.tables import visible
+
 
 def run_new(args: argparse.Namespace) -> int:
     from rigkit.capture import create_session
@@ -20,7 +22,7 @@ def run_new(args: argparse.Namespace) -> int:
 
 def run_add_frame(args: argparse.Namespace) -> int:
     from rigkit.capture import add_frame, load_session
-    from rigkit.capture.actions import check_frame_file
+    from rigkit.capture.actions import check_frame_file, stored_name
     from rigkit.capture.field import burst_misfit
     from rigkit.errors import InputError
 
@@ -34,6 +36,10 @@ def run_add_frame(args: argparse.Namespace) -> int:
                         replace_existing=args.replace, burst=args.burst)
     burst = session.bursts[args.position]
     frame = burst[-1]
+    if stored_name(args.file.name) != args.file.name:
+        print(f"note: {visible(args.file.name, lines=False)} holds characters that are not "
+              f"shown as they are (control, invisible or not UTF-8): stored as {frame.file}, "
+              "the name as given kept as its source in session.yaml")
     width, height = frame.size_px
     count = f", frame {len(burst)} of the burst" if len(burst) > 1 else ""
     print(f"{args.position}: {frame.file} ({width}x{height} px, sha256 {frame.sha256[:12]}"
@@ -52,7 +58,7 @@ def _print_exif_findings(session: Any) -> None:
     paths = [session.frame_path(p) for p in ("left", "right", "back")]
     findings = check_capture(session.rig(), paths)
     for finding in findings:
-        print(f"warning: {finding.message}")
+        print(f"warning: {visible(finding.message, lines=False)}")
     if not findings:
         print("all three frames present; EXIF agrees with the rig profile")
 
@@ -167,7 +173,6 @@ def run_remove_frame(args: argparse.Namespace) -> int:
 def run_show(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
     from rigkit.capture.actions import changing
-    from rigkit.core.tables import visible
     from rigkit.errors import InputError
 
     try:  # repair what an interrupted command left, where the session can be changed
@@ -175,7 +180,7 @@ def run_show(args: argparse.Namespace) -> int:
             pass
     except InputError as exc:  # busy, read-only or hostile: say why, show it as it is
         session = load_session(args.session)  # one that cannot be read says only that
-        print(f"warning: not repaired: {exc}", file=sys.stderr)
+        print(f"warning: not repaired: {visible(str(exc), lines=False)}", file=sys.stderr)
     if args.json:
         print(json.dumps(_show_data(session), indent=2))
     else:
@@ -214,7 +219,7 @@ def _last_rows(session: Any) -> list[Any]:
     torn: list[str] = []
     rows = latest_run(read_rows(log, torn)) if log.is_file() else []
     for problem in torn:
-        print(f"warning: {problem}", file=sys.stderr)
+        print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
     return rows
 
 

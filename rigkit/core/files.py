@@ -45,13 +45,19 @@ def file_sha256(path: Path) -> str:
     """Hex SHA-256 of a file's bytes, read in 1 MiB blocks; InputError naming the file
     when it is no regular file (:func:`rigkit.core.safefs.open_input`) or cannot be
     read."""
-    digest = hashlib.sha256()
     try:
-        with os.fdopen(open_input(Path(path)), "rb") as handle:  # never a FIFO or device
-            for block in iter(lambda: handle.read(1 << 20), b""):
-                digest.update(block)
+        return fd_sha256(open_input(Path(path)))  # never a FIFO or a device
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def fd_sha256(fd: int) -> str:
+    """Hex SHA-256 of the bytes of the file open at ``fd`` from where it stands, read in
+    1 MiB blocks; the descriptor is closed. OSError if it cannot be read."""
+    digest = hashlib.sha256()
+    with os.fdopen(fd, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
     return digest.hexdigest()
 
 
@@ -153,6 +159,31 @@ def write_with(path: Path, dump: Callable[[BinaryIO], object]) -> None:
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_at(folder_fd: int, name: str, data: bytes) -> None:
+    """Replace ``name`` in the folder open at ``folder_fd`` with ``data`` atomically, as
+    :func:`write_bytes` does, every step relative to the descriptor (the temporary
+    file created without following a link): a folder of an untrusted session swapped
+    for a link meanwhile does not redirect the write."""
+    while True:
+        tmp = f".{name}.{secrets.token_hex(4)}.tmp"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                         0o666, dir_fd=folder_fd)
+            break
+        except FileExistsError:
+            continue
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, name, src_dir_fd=folder_fd, dst_dir_fd=folder_fd)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp, dir_fd=folder_fd)
         raise
 
 
