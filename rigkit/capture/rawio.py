@@ -29,11 +29,11 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from rigkit.capture.imagesize import MAX_FRAME_PIXELS, check_size, header_size
+from rigkit.capture.imagesize import MAX_FRAME_BYTES, MAX_FRAME_PIXELS, check_size, header_size
 from rigkit.capture.picture import picture_problem
 from rigkit.core.chatter import captured_stderr
 from rigkit.core.files import encode_png, write_at
-from rigkit.core.safefs import open_folder, read_regular, require_file
+from rigkit.core.safefs import open_folder, open_input, read_regular, require_file, too_large
 from rigkit.errors import InputError
 from rigkit.pipeline.images import check_decoder_output, decode_grey, read_image_file
 
@@ -173,14 +173,17 @@ def _open_raw(path: Path) -> rawpy.RawPy:
     Raises rawpy.LibRawError as rawpy.imread does."""
     import rawpy
 
-    with path.open("rb") as handle:
+    with os.fdopen(open_input(path), "rb") as handle:  # never a FIFO or a device
+        size = os.fstat(handle.fileno()).st_size
+        if size > MAX_FRAME_BYTES:  # LibRaw would read it whole
+            raise too_large(path, size, MAX_FRAME_BYTES, "a frame file")
         return rawpy.imread(handle)
 
 
 def _check_raw_container(path: Path) -> None:
     """InputError for a file with a RAW name whose content is another format that
     LibRaw would misreport, or a RAW format it cannot decode."""
-    with path.open("rb") as handle:
+    with os.fdopen(open_input(path), "rb") as handle:
         head = handle.read(16)
     for signature, kind, suffix in _NOT_RAW:
         if head.startswith(signature):
