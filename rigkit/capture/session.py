@@ -169,7 +169,8 @@ class Session:
     tripod: TripodPosition | None = None
     """Where the tripod stood (``rigkit session set-position``), None if not recorded."""
     field_step: str | None = None
-    """The step of :data:`FIELD_STEPS` ``rigkit field`` was last on, None if never."""
+    """The step of :data:`FIELD_STEPS` ``rigkit field`` was last on, None if never; as
+    written in ``session.yaml``, so possibly a step this rigkit does not know or ``""``."""
 
     @property
     def frames(self) -> Mapping[str, Frame]:
@@ -311,9 +312,11 @@ def _session_from_data(data: Any, path: Path) -> Session:
 
 
 def _field_step(value: Any, key: KeyPath) -> str:
-    if value not in FIELD_STEPS:
-        raise key.error(f"must be one of {', '.join(FIELD_STEPS)}", value)
-    return str(value)
+    """The field TUI's bookmark as written, kept whatever it is (a step a newer rigkit
+    added stays for it): only ``rigkit field`` reads it, and one it does not know (or an
+    empty one, ``""``) makes it start where the capture stands and say why
+    (:func:`rigkit.capture.field.resume_step`), so the session stays usable."""
+    return value if isinstance(value, str) else ""
 
 
 def _check_ranges(targets: tuple[Target, ...], longest_m: float, key: KeyPath) -> None:

@@ -28,11 +28,13 @@ from rigkit.capture.field import (
     frames_at,
     newest_failed,
     onsite_checks,
+    resume_note,
     resume_step,
 )
 from rigkit.capture.positioning import set_field_step
 from rigkit.capture.views import check_image
 from rigkit.core.chatter import private_terminal
+from rigkit.core.tables import visible
 from rigkit.errors import RigkitError, environment_message
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.messages import (
@@ -134,10 +136,15 @@ class FieldApp(App[None]):
             self.push_screen(StartScreen())
 
     def open_session(self, session: Session) -> None:
-        """Show ``session`` at the step it stopped at (:func:`resume_step`)."""
+        """Show ``session`` at the step it stopped at (:func:`resume_step`; where
+        session.yaml names a step this rigkit does not know, saying so)."""
         self.session = session
         self.sub_title = session.name
         self.goto(resume_step(session), resume=True)
+        note = resume_note(session)
+        if note:
+            self.notify(visible(note, lines=False), severity="warning", timeout=15,
+                        markup=False)
 
     def goto(self, step: str, resume: bool = False) -> None:
         """Replace the current step's screen with ``step``'s (``resume``: opening a
@@ -162,8 +169,7 @@ class FieldApp(App[None]):
             set_field_step(session, step)
         except (RigkitError, OSError) as exc:
             message = str(exc) if isinstance(exc, RigkitError) else environment_message(exc)
-            self.call_from_thread(self.notify, f"where the capture stands was not saved: "
-                                  f"{message}", severity="warning")
+            self.warn(f"where the capture stands was not saved: {visible(message)}")
 
     def on_goto(self, message: Goto) -> None:
         self.goto(message.step, message.resume)
@@ -187,23 +193,32 @@ class FieldApp(App[None]):
     @work(thread=True, group="watch")
     def watch_folder(self, folder: Path) -> None:
         """Ingest each frame that arrives in ``folder`` into the position on screen; when
-        the folder goes away (card removed), wait for it to come back."""
+        the folder goes away (card removed), wait for it to come back. Nothing on the
+        card ends the app: what cannot be watched is said and skipped
+        (:func:`rigkit.tui.watch.arrivals`)."""
         while not self.stop.is_set():
             if folder.is_dir():
-                for path in arrivals(folder, self.stop, self.config.settle_s):
-                    self.arrived(path)
-                if not self.stop.is_set():
-                    self.call_from_thread(
-                        self.notify, f"{folder} is gone (card removed?); watching again "
-                        "when it is back", severity="warning")
+                try:
+                    for path in arrivals(folder, self.stop, self.config.settle_s, self.warn):
+                        self.arrived(path)
+                except (OSError, RigkitError) as exc:
+                    self.warn(f"watching {visible(str(folder), lines=False)}: "
+                              f"{visible(str(exc), lines=False)}; watching again")
+                else:
+                    if not self.stop.is_set():
+                        self.warn(f"{visible(str(folder), lines=False)} is gone (card "
+                                  "removed?); watching again when it is back")
             self.stop.wait(1.0)
+
+    def warn(self, line: str) -> None:
+        """``line`` (shown as it is, never read as markup) as a warning (from a worker)."""
+        self.call_from_thread(self.notify, line, severity="warning", markup=False)
 
     def arrived(self, path: Path) -> None:
         """A complete new file in the watched folder (in the watcher's thread)."""
         position = self.call_from_thread(self.current_position)
         if position is None:
-            self.call_from_thread(self.notify, f"{path.name} arrived; open a position to add "
-                                  "it", severity="warning")
+            self.warn(f"{visible(path.name, lines=False)} arrived; open a position to add it")
         else:
             self.ingest(path, position)
 
