@@ -24,10 +24,12 @@ import numpy as np
 import pytest
 import yaml
 
+from rigkit.capture import load_session
 from rigkit.capture.actions import clean_staging
 from rigkit.capture.rawio import load_linear_grey
 from rigkit.cli import main
 from rigkit.errors import InputError
+from tests.conftest import copy_session
 from tests.dngutil import write_dng
 
 H, W = 48, 64
@@ -204,3 +206,25 @@ def test_a_fifo_as_a_frame_is_refused_before_it_is_opened(
         assert _within(10, lambda argv=argv: main(argv)) == 2
         err = capsys.readouterr().err.strip()
         assert err.endswith(f"{fifo}: is a FIFO, not a file") and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("name", ["a\nb.png", "left\x1b[2J\x1b]0;owned\x07.png",
+                                  "r\u202egnp.png"])
+def test_a_frame_named_with_control_characters_is_stored_under_a_safe_name(
+    small_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    """Before: add-frame of such a file exited 0, and then every command refused
+    session.yaml (the session was bricked); its newline forged a line of history.log."""
+    session = copy_session(small_session, tmp_path)
+    frame = tmp_path / name
+    shutil.copy(session / "raw" / "left.png", frame)
+    history = (session / "history.log").read_text().splitlines()
+    assert main(["session", "add-frame", str(session), "--position", "left", str(frame),
+                 "--replace"]) == 0
+    out = capsys.readouterr().out
+    assert "note: " in out and "stored as raw/" in out and "\x1b" not in out
+    stored = load_session(session).frames["left"]
+    assert stored.file.isprintable() and Path(stored.file).name != name
+    assert stored.source.isprintable() and str(tmp_path) in stored.source
+    assert len((session / "history.log").read_text().splitlines()) == len(history) + 1
+    assert main(["session", "show", str(session)]) == 0  # every command loads it
