@@ -236,7 +236,10 @@ def repair_session(path: Path) -> None:
         return
     log = path / LOG_NAME
     damaged: list[str] = []  # said by what reads the log; the repair needs the run ids
-    logged = {row.run_id for row in read_rows(log, damaged)} if log.is_file() else set()
+    try:
+        logged = {row.run_id for row in read_rows(log, damaged)} if log.is_file() else set()
+    except InputError:  # no log that can be read (too large, no CSV): its readers say so
+        return
     missing = [row for row in rows if row.run_id not in logged]
     if missing:
         append_rows(log, missing)

@@ -214,10 +214,14 @@ def _last_rows(session: Any) -> list[Any]:
     import sys
 
     from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
+    from rigkit.errors import InputError
 
     log = session.path / LOG_NAME
     torn: list[str] = []
-    rows = latest_run(read_rows(log, torn)) if log.is_file() else []
+    try:
+        rows = latest_run(read_rows(log, torn)) if log.is_file() else []
+    except InputError as exc:  # the session is shown all the same
+        torn, rows = [str(exc)], []
     for problem in torn:
         print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
     return rows

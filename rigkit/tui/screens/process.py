@@ -73,7 +73,7 @@ class ProcessScreen(ExportingScreen):
         it; the frames' hashes are read here, off the screen's thread)."""
         session = session_of(self)
         try:  # a damaged log or results/ is said, and r processes again
-            rows = latest_run(read_rows(session.path / "comparisons.csv")) \
+            rows = latest_run(read_rows(session.path / "comparisons.csv", [])) \
                 if (session.path / "comparisons.csv").is_file() else []
             done = bool(rows) and (session.path / RESULTS_DIR / "depth.npy").is_file()
             why = (stale_results(session) or "; ".join(frame_problems(session))) if done else ""
