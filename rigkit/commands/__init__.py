@@ -57,56 +57,20 @@ def count(text: str) -> int:
     return value
 
 
-def output_file(text: str) -> Path:
-    """An argparse type: a file the command writes (``--out D.npy``). ``rigkit.cli``
-    checks every option of this type before the command runs, by the one rule for
-    outputs (:mod:`rigkit.core.outputs`)."""
-    return Path(text)
+class OutputPath:
+    """An argparse type for a path the command writes: a file (``--out D.npy``), a
+    folder it writes into or creates, or a log it appends to (``output_kind``).
+    ``rigkit.cli`` checks every option of such a type by the one rule for outputs
+    (:mod:`rigkit.core.outputs`) before the command runs."""
+
+    def __init__(self, output_kind: str) -> None:
+        self.output_kind = output_kind
+        self.__name__ = f"output_{output_kind}"  # argparse names the type in errors
+
+    def __call__(self, text: str) -> Path:
+        return Path(text)
 
 
-def output_folder(text: str) -> Path:
-    """An argparse type: a folder the command writes into or creates (as
-    :func:`output_file`)."""
-    return Path(text)
-
-
-def output_log(text: str) -> Path:
-    """An argparse type: a log the command appends to (as :func:`output_file`)."""
-    return Path(text)
-
-
-OUTPUT_KINDS = {output_file: "file", output_folder: "folder", output_log: "log"}
-"""Each output type and the kind of output it declares (:data:`rigkit.core.outputs.CHECKS`)."""
-
-
-def output_values(parser: argparse.ArgumentParser, args: argparse.Namespace
-                  ) -> list[tuple[str, str, Path]]:
-    """The outputs the parsed ``args`` name: (option as the user wrote it, kind, path)
-    for every argument of an output type in the subcommands chosen, in ``parser``'s
-    order; options not given (None) are left out."""
-    found = []
-    for action in _chosen_actions(parser, args):
-        kind = OUTPUT_KINDS.get(action.type)  # type: ignore[arg-type]
-        value = getattr(args, action.dest, None)
-        if kind is None or value is None:
-            continue
-        name = action.option_strings[-1] if action.option_strings else \
-            (action.metavar if isinstance(action.metavar, str) else action.dest).upper()
-        for path in value if isinstance(value, list) else [value]:
-            found.append((name, kind, path))
-    return found
-
-
-def _chosen_actions(parser: argparse.ArgumentParser, args: argparse.Namespace
-                    ) -> list[argparse.Action]:
-    """The actions of ``parser`` and of each subparser ``args`` chose, top down."""
-    actions: list[argparse.Action] = []
-    current: argparse.ArgumentParser | None = parser
-    while current is not None:
-        actions += current._actions
-        chosen = None
-        for action in current._actions:
-            if isinstance(action, argparse._SubParsersAction):
-                chosen = action.choices.get(str(getattr(args, action.dest, "")))
-        current = chosen
-    return actions
+output_file = OutputPath("file")
+output_folder = OutputPath("folder")
+output_log = OutputPath("log")

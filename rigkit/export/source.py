@@ -17,9 +17,11 @@ import cv2
 import numpy as np
 
 from rigkit.capture.actions import stale_results
+from rigkit.capture.imagesize import MAX_FRAME_PIXELS
 from rigkit.capture.session import RESULTS_DIR, Session, is_session, load_session
-from rigkit.core.safefs import check_regular, real_folder
+from rigkit.core.safefs import check_regular, read_input, real_folder
 from rigkit.errors import InputError
+from rigkit.pipeline.images import MAX_IMAGE_BYTES
 
 
 @dataclass(frozen=True)
@@ -128,12 +130,17 @@ def _meta(path: Path) -> dict[str, Any]:
 
 def _maps(depth_path: Path, sigma_path: Path, grey_path: Path,
           remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Depth and sigma memory-mapped, grey read; all (H, W) and of one size."""
+    """Depth and sigma memory-mapped, grey read; all (H, W) and of one size, no larger
+    than the largest frame (a map beyond it is refused before it is read)."""
     depth, sigma = (_npy(p) for p in (depth_path, sigma_path))
+    if depth.size > MAX_FRAME_PIXELS:
+        raise InputError(f"{depth_path}: a {'x'.join(map(str, depth.shape[::-1]))} map, "
+                         f"beyond the {MAX_FRAME_PIXELS / 1e6:.0f} MP of the largest frame")
     if not grey_path.is_file():
         raise InputError(f"{grey_path}: missing (written since rigkit records the grey "
                          f"values for export); run `{remake}` again")
-    data = np.fromfile(grey_path, np.uint8)  # read by Python: no file name reaches OpenCV
+    # read by Python (no file name reaches OpenCV), never a FIFO, at most a frame's size
+    data = np.frombuffer(read_input(grey_path, MAX_IMAGE_BYTES, "a grey image"), np.uint8)
     grey = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
     if grey is None:
         raise InputError(f"{grey_path}: cannot read the image")

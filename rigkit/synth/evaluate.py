@@ -247,10 +247,12 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None,
     if estimate_path is None:
         where = f" (looked for {', '.join(map(str, looked))})" if looked else ""
         return failed_metrics(name, f"no depth estimate{where}")
-    try:
-        est = np.load(estimate_path)
+    try:  # its header first: a map of another size is not read (depth_metrics says so)
+        est = np.load(estimate_path, mmap_mode="r")
     except (OSError, ValueError) as exc:
         return failed_metrics(name, f"unreadable estimate {estimate_path}: {exc}")
+    if not isinstance(est, np.ndarray) or est.ndim != 2:
+        return failed_metrics(name, f"unreadable estimate {estimate_path}: not an (H, W) map")
     depth, judged, flat = truth.depth("left"), visible_in_right(truth), truth.flat()
     if flat is not None:
         judged &= ~flat

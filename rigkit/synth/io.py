@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rigkit.capture.imagesize import MAX_FRAME_PIXELS
 from rigkit.core.files import write_npy, write_png, write_text
 from rigkit.core.outputs import LEDGER, check_outputs, record_outputs
 from rigkit.core.yamlfile import dump_yaml, read_strict_yaml
@@ -227,10 +228,11 @@ def _params(values: dict) -> SynthParams:
 
 
 def _truth(path: Path, kind: type, ndim: int) -> np.ndarray:
-    """A ground-truth array of ``kind`` (a NumPy scalar type) and ``ndim`` dimensions;
-    InputError naming the file where it is none."""
+    """A ground-truth array of ``kind`` (a NumPy scalar type) and ``ndim`` dimensions,
+    no larger than the largest frame; InputError naming the file where it is none (said
+    from its header, before it is read)."""
     try:
-        array = np.load(path)
+        array = np.load(path, mmap_mode="r")
     except FileNotFoundError:
         raise InputError(f"{path}: missing ground truth") from None
     except (OSError, ValueError) as exc:
@@ -239,7 +241,9 @@ def _truth(path: Path, kind: type, ndim: int) -> np.ndarray:
             or not np.issubdtype(array.dtype, kind):
         raise InputError(f"{path}: not ground truth as rigkit synth writes it "
                          f"({getattr(array, 'dtype', '?')}, {getattr(array, 'ndim', '?')} axes)")
-    return array
+    if array.size > MAX_FRAME_PIXELS:
+        raise InputError(f"{path}: {array.size:,} values, beyond the largest frame")
+    return np.array(array)
 
 
 def load_scene(path: str | Path) -> SceneTruth:

@@ -21,7 +21,7 @@ import pytest
 from rigkit.capture.comparisons import LOG_NAME
 from rigkit.capture.session import DERIVED_DIR, HISTORY_FILE, RAW_DIR, RESULTS_DIR, SESSION_FILE
 from rigkit.cli import build_parser, main
-from rigkit.commands import OUTPUT_KINDS
+from rigkit.commands import OutputPath
 from rigkit.core.outputs import LEDGER, SESSION_KEPT
 from tests.conftest import copy_session
 
@@ -64,7 +64,7 @@ def _commands() -> list[tuple[tuple[str, ...], argparse.ArgumentParser]]:
 def _names_a_path(action: argparse.Action) -> bool:
     """Whether an option takes a file or folder, by its type, metavar or name (a flag
     or a number takes none)."""
-    if action.type is Path or action.type in OUTPUT_KINDS:
+    if action.type is Path or isinstance(action.type, OutputPath):
         return True
     if action.nargs == 0 or action.type not in (None, str):
         return False
@@ -75,13 +75,13 @@ def _names_a_path(action: argparse.Action) -> bool:
 
 def _outputs() -> list[tuple[tuple[str, ...], argparse.Action]]:
     return [(path, action) for path, parser in _commands() for action in parser._actions
-            if action.type in OUTPUT_KINDS]
+            if isinstance(action.type, OutputPath)]
 
 
 def test_every_option_naming_a_path_is_declared_read_or_written() -> None:
     undeclared = [(*path, action.dest) for path, parser in _commands()
                   for action in parser._actions
-                  if _names_a_path(action) and action.type not in OUTPUT_KINDS
+                  if _names_a_path(action) and not isinstance(action.type, OutputPath)
                   and (*path, action.dest) not in READ]
     assert undeclared == [], "declare these as outputs (an output type) or add them to READ"
     outputs = {(*path, action.dest) for path, action in _outputs()}
@@ -114,7 +114,7 @@ def _argv(path: tuple[str, ...], parser: argparse.ArgumentParser, target: argpar
             continue
         if action.choices:
             text = str(next(iter(action.choices)))
-        elif action.type not in (None, Path) and action.type not in OUTPUT_KINDS:
+        elif action.type not in (None, Path) and not isinstance(action.type, OutputPath):
             text = "1"
         else:
             text = str(dummy)

@@ -20,6 +20,7 @@ from rigkit.batch.session import stray_warnings
 from rigkit.capture import RESULTS_DIR, frame_problems, read_rows
 from rigkit.capture.actions import stale_results
 from rigkit.capture.comparisons import Comparison, latest_run
+from rigkit.capture.imagesize import MAX_FRAME_PIXELS
 from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
 from rigkit.reporting.scale import run_reference, run_scale_note
@@ -163,9 +164,11 @@ class ProcessScreen(ExportingScreen):
         first: processing again must not mount a second one beside it)."""
         box = self.query_one("#depth", Vertical)
         await box.remove_children()
-        try:
-            depth = np.load(path)
+        try:  # its header first: nothing but a frame-sized map is read
+            depth = np.load(path, mmap_mode="r")
         except (OSError, ValueError):
+            return
+        if depth.ndim != 2 or depth.size > MAX_FRAME_PIXELS:
             return
         lo, hi = depth_range(depth)
         image = cv2.cvtColor(colour_map(depth, lo, hi), cv2.COLOR_BGR2RGB)
