@@ -24,6 +24,7 @@ import hashlib
 import os
 import secrets
 import shutil
+import stat
 import tempfile
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
@@ -339,35 +340,84 @@ def replace_folder(
     the retired one deleted. Readers see the old folder or the new one; a crash leaves
     something :func:`recover_folder` repairs (it runs first here too). On a failure
     before the swap, the staged folder is removed and the current one is untouched.
+    Every step is taken relative to ``parent``'s descriptor, and the files are written
+    through the staged folder's, never following a link: ``parent`` may be a session
+    from someone else, and a folder swapped for a link meanwhile redirects nothing.
     """
     parent = Path(parent)
     recover_folder(parent, name)
     stage_id = stage_id or secrets.token_hex(4)
-    staging = parent / f".{name}-{stage_id}"
-    staging.mkdir()
+    staging, retired = f".{name}-{stage_id}", f".{name}-{_RETIRED}-{stage_id}"
+    folder = os.open(parent, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     try:
-        for file_name, content in files.items():
-            _write_new(staging / file_name, content)
-        fsync_folder(staging)
-        current = parent / name
-        retired = parent / f".{name}-{_RETIRED}-{stage_id}"
-        if current.exists():
-            os.rename(current, retired)
-        os.rename(staging, current)
-        fsync_folder(parent)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    shutil.rmtree(retired, ignore_errors=True)
+        os.mkdir(staging, dir_fd=folder)
+        try:
+            staged = os.open(staging, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC,
+                             dir_fd=folder)
+            try:
+                for file_name, content in files.items():
+                    _write_new_at(staged, file_name, content)
+                os.fsync(staged)
+            finally:
+                os.close(staged)
+            if _lexists_at(folder, name):
+                os.rename(name, retired, src_dir_fd=folder, dst_dir_fd=folder)
+            os.rename(staging, name, src_dir_fd=folder, dst_dir_fd=folder)
+            with contextlib.suppress(OSError):
+                os.fsync(folder)
+        except BaseException:
+            _remove_at(folder, staging)
+            raise
+        _remove_at(folder, retired)
+    finally:
+        os.close(folder)
 
 
 def recover_folder(parent: Path, name: str) -> None:
     """Undo an interrupted :func:`replace_folder`: if ``parent/name`` is gone, restore
-    the newest retired copy; then delete every staged or retired folder left over."""
-    parent = Path(parent)
-    current = parent / name
-    retired = sorted(parent.glob(f".{name}-{_RETIRED}-*"))
-    if not current.exists() and retired:
-        os.rename(retired.pop(), current)
-    for leftover in [*retired, *parent.glob(f".{name}-*")]:
-        shutil.rmtree(leftover, ignore_errors=True)
+    the newest retired copy; then delete every staged or retired folder left over (a
+    link among them is removed itself, never followed). Relative to ``parent``'s
+    descriptor, as :func:`replace_folder` works."""
+    folder = os.open(Path(parent), os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    try:
+        with os.scandir(folder) as entries:
+            names = sorted(entry.name for entry in entries)
+        retired = [n for n in names if n.startswith(f".{name}-{_RETIRED}-")]
+        if name not in names and retired:
+            os.rename(retired[-1], name, src_dir_fd=folder, dst_dir_fd=folder)
+            names.remove(retired[-1])
+        for leftover in names:
+            if leftover.startswith(f".{name}-"):
+                _remove_at(folder, leftover)
+    finally:
+        os.close(folder)
+
+
+def _write_new_at(folder_fd: int, name: str, content: Content) -> None:
+    """:func:`_write_new` of ``name`` in the folder open at ``folder_fd``."""
+    dump = _dump(Path(name), content)
+    fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                 0o666, dir_fd=folder_fd)
+    with os.fdopen(fd, "wb") as handle:
+        dump(handle)
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+def _lexists_at(folder_fd: int, name: str) -> bool:
+    try:
+        os.lstat(name, dir_fd=folder_fd)
+    except FileNotFoundError:
+        return False
+    return True
+
+
+def _remove_at(folder_fd: int, name: str) -> None:
+    """Remove ``name`` from the folder open at ``folder_fd``, whatever it is (a folder
+    with all it holds, without following a link inside; a link or file itself); best
+    effort."""
+    with contextlib.suppress(OSError):
+        if stat.S_ISDIR(os.lstat(name, dir_fd=folder_fd).st_mode):
+            shutil.rmtree(name, dir_fd=folder_fd, ignore_errors=True)
+        else:
+            os.unlink(name, dir_fd=folder_fd)
