@@ -22,7 +22,7 @@ from typing import Any
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.exif import ExifInfo, read_exif
 from rigkit.capture.frames import FrameFile, capture_problems
-from rigkit.capture.imagesize import check_before_copy
+from rigkit.capture.imagesize import MAX_FRAME_BYTES, check_before_copy
 from rigkit.capture.lock import session_lock
 from rigkit.capture.rawio import is_raw, load_linear_grey
 from rigkit.capture.session import (
@@ -54,6 +54,7 @@ from rigkit.core.safefs import (
     open_regular,
     remove_files,
     require_file,
+    too_large,
 )
 from rigkit.core.tables import visible
 from rigkit.errors import InputError
@@ -343,9 +344,12 @@ def _staged(session_path: Path, source: Path) -> Iterator[_Staged]:
     try:
         out = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
                       0o666, dir_fd=folder)
-        digest = hashlib.sha256()
+        digest, copied = hashlib.sha256(), 0
         with os.fdopen(out, "wb") as copy, os.fdopen(open_input(source), "rb") as original:
             for block in iter(lambda: original.read(1 << 20), b""):
+                copied += len(block)
+                if copied > MAX_FRAME_BYTES:  # it grew past any frame while copied
+                    raise too_large(source, copied, MAX_FRAME_BYTES, "a frame file")
                 digest.update(block)
                 copy.write(block)
             copy.flush()

@@ -116,11 +116,15 @@ def file_depth(path: Path) -> DepthMap:
     return DepthMap(*arrays, f=f, cx=cx, cy=cy, name=stem.name, rig=rig)
 
 
+META_LIMIT = 16 << 20
+"""The largest ``D.json`` read, bytes (as ``results/depth.json``)."""
+
+
 def _meta(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: missing (written with the depth map)") from None
+    if not path.exists():
+        raise InputError(f"{path}: missing (written with the depth map)")
+    try:  # never a FIFO; no more than a run's metadata can be
+        data = json.loads(read_input(path, META_LIMIT, "a depth map's metadata"))
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: cannot read ({exc})") from None
     if not isinstance(data, dict):
