@@ -69,7 +69,11 @@ def session_part(path: Path) -> tuple[Path, tuple[str, ...]] | None:
 
 
 def check_place(path: Path, what: str) -> None:
-    """InputError naming ``what`` where ``path`` lies in a session's own parts."""
+    """InputError naming ``what`` where ``path`` lies in a session's own parts, or is a
+    folder's ledger."""
+    if Path(path).name == LEDGER:
+        raise InputError(f"{what}: {path} is where rigkit records what it wrote in that "
+                         "folder; give another name")
     found = session_part(path)
     if found is not None:
         session, parts = found
