@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 from typing import TextIO
 
-from rigkit.core.outputs import open_output_log
+from rigkit.core.outputs import OutputLog
 from rigkit.core.safefs import open_regular
 from rigkit.errors import InputError
 from rigkit.rangefinder import (
@@ -138,13 +138,12 @@ def _check_output(args: argparse.Namespace) -> None:
 
 
 def _append_to(path: Path) -> TextIO:
-    """``path`` opened to append lines (:func:`rigkit.core.outputs.open_output_log`); a
-    last line cut short (a log whose writer was stopped mid-line) is ended first, so
-    the next reading is a line of its own."""
-    fd = open_output_log(path, "--output")
-    end = os.fstat(fd).st_size
-    output = os.fdopen(fd, "a", encoding="utf-8")
-    if end > 0 and os.pread(fd, 1, end - 1) != b"\n":
+    """``path`` opened to append lines (:class:`rigkit.core.outputs.OutputLog`); a last
+    line cut short (a log whose writer was stopped mid-line) is ended first, so the next
+    reading is a line of its own."""
+    output = OutputLog(path, "--output")
+    end = os.fstat(output.fileno()).st_size
+    if end > 0 and os.pread(output.fileno(), 1, end - 1) != b"\n":
         output.write("\n")
     return output
 

@@ -15,11 +15,13 @@ An output is never:
 * a file that rigkit did not write. How rigkit knows its own files: each folder it
   writes outputs into keeps a ledger, :data:`LEDGER` (JSON), naming every file it
   wrote there with the file's inode, size and modification time as they were when it
-  finished writing. A file is rigkit's while all three still match (a log rigkit
-  appends to: while its inode matches). A file someone made, copied over, edited or
-  replaced since does not match and is refused, as is every file in a folder without a
-  ledger (outputs of a rigkit older than the ledger included: remove them once). A
-  command's ``--force`` (``rig calibrate``) only lets it replace such a file of its own.
+  finished writing. A file is rigkit's while all three still match. A file someone
+  made, copied over, edited or replaced since does not match and is refused, as is
+  every file in a folder without a ledger (outputs of a rigkit older than the ledger
+  included: remove them once). A log rigkit appends to is its own while its inode
+  matches, it is no shorter than recorded and its first bytes are the ones recorded (a
+  new file that took a removed log's inode is not). A command's ``--force`` (``rig
+  calibrate``) only lets it replace such a file of its own.
 
 Each refusal is :class:`~rigkit.errors.InputError`: one line naming the option, the
 path and why, before any work. Files are written atomically (:mod:`rigkit.core.files`)
@@ -30,11 +32,14 @@ meanwhile is not replaced either.
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import io
 import json
 import os
 import stat
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 from rigkit.core.files import Content, staged_files, write_text, write_together
 from rigkit.core.safefs import kind_of, open_regular, read_regular
@@ -132,7 +137,16 @@ def check_output_log(path: Path, what: str) -> None:
     if stat.S_ISLNK(info.st_mode) or not stat.S_ISREG(info.st_mode):
         raise InputError(f"{what}: {path} is {kind_of(info.st_mode)}, not a log rigkit "
                          "may append to; give another name")
-    if not _matches(_ledger(path.parent).get(path.name), info):
+    try:
+        fd = open_regular(path, os.O_RDONLY)
+    except (OSError, InputError):
+        fd = None
+    try:
+        ours = _matches(_ledger(path.parent).get(path.name), info, fd)
+    finally:
+        if fd is not None:
+            os.close(fd)
+    if not ours:
         raise InputError(f"{what}: {path} exists and is no log rigkit started (see "
                          f"{LEDGER} in its folder): rigkit appends to no file of yours; "
                          "give a new file")
@@ -183,11 +197,25 @@ def staged_outputs(folder: Path, names: Iterable[str], what: str) -> Iterator[Pa
     record_outputs(folder, names)
 
 
-def open_output_log(path: Path, what: str) -> int:
-    """A descriptor appending to the log at ``path`` (read and write, ``O_APPEND``): a
-    new file, recorded in its folder's ledger as rigkit's, or one recorded so before
-    (:func:`check_output_log`); never a link, a FIFO or a device, and never blocking."""
-    path = Path(path)
+class OutputLog(io.TextIOWrapper):
+    """A log rigkit appends text to (``--output``, ``--raw-log``): a new file, recorded
+    in its folder's ledger as rigkit's, or one recorded so before
+    (:func:`check_output_log`); never a link, a FIFO or a device, and never blocking.
+    Opened for reading too (``O_RDWR | O_APPEND``: a caller may look at its last byte
+    through ``fileno()``); its state is recorded again when it is closed."""
+
+    def __init__(self, path: Path, what: str, encoding: str = "utf-8") -> None:
+        self.output_path = Path(path)
+        fd = _open_log(self.output_path, what)
+        super().__init__(os.fdopen(fd, "ab"), encoding=encoding)
+
+    def close(self) -> None:
+        if not self.closed:
+            super().close()
+            record_outputs(self.output_path.parent, [self.output_path.name], log=True)
+
+
+def _open_log(path: Path, what: str) -> int:
     check_output_log(path, what)
     flags = os.O_RDWR | os.O_APPEND
     try:
@@ -197,7 +225,7 @@ def open_output_log(path: Path, what: str) -> int:
             fd = open_regular(path, flags)
         except InputError as exc:
             raise InputError(f"{what}: {exc}") from None
-        if not _matches(_ledger(path.parent).get(path.name), os.fstat(fd)):
+        if not _matches(_ledger(path.parent).get(path.name), os.fstat(fd), fd):
             os.close(fd)
             check_output_log(path, what)  # says why
             raise InputError(f"{what}: {path} changed while it was opened") from None
@@ -222,15 +250,19 @@ def record_outputs(folder: Path, names: Iterable[str], log: bool = False) -> Non
             info = os.lstat(folder / name)
         except OSError:
             continue
-        if stat.S_ISREG(info.st_mode):
-            ledger[name] = {"inode": info.st_ino} if log else \
-                {"inode": info.st_ino, "size": info.st_size, "mtime_ns": info.st_mtime_ns}
+        if not stat.S_ISREG(info.st_mode):
+            continue
+        ledger[name] = {"inode": info.st_ino, "size": info.st_size}
+        if log:
+            ledger[name]["head"] = _head(folder / name, info.st_size)
+        else:
+            ledger[name]["mtime_ns"] = info.st_mtime_ns
     text = json.dumps({"format": _FORMAT, "files": ledger}, indent=1, sort_keys=True)
     with contextlib.suppress(OSError):
         write_text(folder / LEDGER, text + "\n")
 
 
-def _ledger(folder: Path) -> dict[str, dict[str, int]]:
+def _ledger(folder: Path) -> dict[str, dict[str, Any]]:
     """The ledger of ``folder``: name -> what was recorded; empty where there is none or
     it cannot be read (a link, a FIFO, damaged, too large): then nothing there is
     rigkit's."""
@@ -242,14 +274,40 @@ def _ledger(folder: Path) -> dict[str, dict[str, int]]:
         else None
     if not isinstance(files, dict):
         return {}
-    return {name: entry for name, entry in files.items()
-            if isinstance(entry, dict) and all(isinstance(v, int) for v in entry.values())}
+    return {name: entry for name, entry in files.items() if isinstance(entry, dict)}
 
 
-def _matches(entry: Mapping[str, int] | None, info: os.stat_result) -> bool:
-    """Whether the file ``info`` describes is the one ``entry`` recorded."""
+def _matches(entry: Mapping[str, Any] | None, info: os.stat_result,
+             fd: int | None = None) -> bool:
+    """Whether the file ``info`` describes is the one ``entry`` recorded: the same inode,
+    size and time; a log (``head``): the same inode, at least the size recorded, and the
+    same first bytes (``fd`` or the entry's folder to read them from), so a new file that
+    took a removed log's inode is not taken for it."""
     if not entry or entry.get("inode") != info.st_ino:
         return False
-    if "size" not in entry:  # a log: appended to since
-        return True
-    return entry.get("size") == info.st_size and entry.get("mtime_ns") == info.st_mtime_ns
+    if "head" not in entry:
+        return entry.get("size") == info.st_size and entry.get("mtime_ns") == info.st_mtime_ns
+    size = entry.get("size")
+    return isinstance(size, int) and info.st_size >= size and fd is not None \
+        and _digest_head(fd, size) == entry["head"]
+
+
+_HEAD = 4096
+"""How many of a log's first bytes its ledger entry keeps a digest of."""
+
+
+def _head(path: Path, size: int) -> str:
+    """The digest of the first ``size`` (at most :data:`_HEAD`) bytes of the log at
+    ``path``; "" where it cannot be read (then it is no log of rigkit's)."""
+    try:
+        fd = open_regular(path, os.O_RDONLY)
+    except (OSError, InputError):
+        return ""
+    try:
+        return _digest_head(fd, size)
+    finally:
+        os.close(fd)
+
+
+def _digest_head(fd: int, size: int) -> str:
+    return hashlib.sha256(os.pread(fd, min(size, _HEAD), 0)).hexdigest()

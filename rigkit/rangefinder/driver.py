@@ -31,7 +31,7 @@ from typing import Any, Protocol, TextIO
 
 import serial
 
-from rigkit.core.outputs import open_output_log
+from rigkit.core.outputs import OutputLog
 from rigkit.errors import InputError
 from rigkit.rangefinder.framing import (
     ChecksumError,
@@ -410,7 +410,7 @@ def open_rangefinder(
         raise InputError(f"stop bits must be 1, 1.5 or 2, got {stopbits}")
     log: TextIO | None = None
     if log_path is not None:  # never a file rigkit did not start, a link or a FIFO
-        log = os.fdopen(open_output_log(Path(log_path), "--raw-log"), "a", encoding="ascii")
+        log = OutputLog(Path(log_path), "--raw-log", encoding="ascii")
     port: Any
     if isinstance(url, str):
         name = url
