@@ -140,7 +140,8 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     calibrate.add_argument("--out", type=output_file, required=True, help="the profile to write")
     calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
                            help="one laser reading's one-sigma error, m (default 0.3)")
-    calibrate.add_argument("--force", action="store_true", help="overwrite --out")
+    calibrate.add_argument("--force", action="store_true",
+                           help="replace --out, where it is a profile rigkit wrote")
     calibrate.set_defaults(runner="rigkit.commands.rig_run:run_calibrate")
 
 
