@@ -46,10 +46,12 @@ def is_frame_file(path: Path) -> bool:
     return path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith(".")
 
 
-def frame_files(folder: Path, say: Say) -> dict[Path, os.stat_result]:
-    """The frame files under ``folder`` (:func:`is_frame_file`), each with its status,
-    walking real folders only (module docstring); what is skipped is said."""
-    found: dict[Path, os.stat_result] = {}
+def frame_files(folder: Path, say: Say) -> dict[Path, os.DirEntry[str]]:
+    """The frame files under ``folder`` (:func:`is_frame_file`), each with its folder
+    entry (``stat(follow_symlinks=False)`` when its size or time is needed: a card's
+    thousands of files are not looked at one by one on every walk), walking real
+    folders only (module docstring); what is skipped is said."""
+    found: dict[Path, os.DirEntry[str]] = {}
     stack = [(folder, 0)]
     while stack:
         current, depth = stack.pop()
@@ -74,7 +76,7 @@ def frame_files(folder: Path, say: Say) -> dict[Path, os.stat_result]:
                         say(f"{visible(entry.path, lines=False)}: its name is not UTF-8 "
                             "text; rename it to add it")
                     else:
-                        found[path] = entry.stat(follow_symlinks=False)
+                        found[path] = entry
             except OSError as exc:
                 say(f"{visible(entry.path, lines=False)}: cannot be read "
                     f"({exc.strerror or exc}); skipped")
@@ -109,10 +111,12 @@ def arrivals(folder: Path, stop: threading.Event, settle_s: float = SETTLE_S,
         if not folder.is_dir():
             return
         now = time.monotonic()
-        current = {p: info.st_size for p, info in frame_files(folder, once).items()
+        current = {p: _size(entry) for p, entry in frame_files(folder, once).items()
                    if p not in seen}
-        pending = {p: v for p, v in pending.items() if p in current}  # gone again
+        pending = {p: v for p, v in pending.items() if current.get(p) is not None}
         for path, size in current.items():
+            if size is None:  # gone again (a temporary file renamed away)
+                continue
             known = pending.get(path)
             if known is None or known[0] != size or size == 0:
                 pending[path] = (size, now)
@@ -120,6 +124,13 @@ def arrivals(folder: Path, stop: threading.Event, settle_s: float = SETTLE_S,
                 del pending[path]
                 seen.add(path)
                 yield path
+
+
+def _size(entry: os.DirEntry[str]) -> int | None:
+    try:
+        return entry.stat(follow_symlinks=False).st_size
+    except OSError:
+        return None
 
 
 def unfiled(folder: Path, session: Session) -> list[Path]:
@@ -135,7 +146,11 @@ def unfiled(folder: Path, session: Session) -> list[Path]:
         began = float("-inf")
     raw = session.path / RAW_DIR
     found = []
-    for path, info in frame_files(folder, lambda line: None).items():
+    for path, entry in frame_files(folder, lambda line: None).items():
+        try:
+            info = entry.stat(follow_symlinks=False)
+        except OSError:  # gone meanwhile
+            continue
         if info.st_mtime < began:
             continue
         name = stored_name(path.name)  # as ingest stores it
