@@ -128,7 +128,8 @@ def check_output_folder(path: Path, what: str) -> None:
 
 def check_output_log(path: Path, what: str) -> None:
     """InputError naming ``what`` unless rigkit may append to ``path``: a new file, or a
-    regular file it created there as a log (its inode in the ledger)."""
+    regular file it created there as a log (its inode, size and first bytes in the
+    ledger: :func:`_matches`)."""
     path = Path(path)
     check_place(path, what)
     info = _lstat(path, what)
