@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rigkit.commands.rig import DEFAULT_RANGE_M
+from rigkit.core.tables import visible
 from rigkit.reporting.rig_check import format_check
 from rigkit.rig import RigProfile, load_rig
 from rigkit.rig.check import check_rig, check_to_dict
@@ -61,7 +62,9 @@ def run_check(args: argparse.Namespace) -> int:
         shimmer_corr_px=args.shimmer_corr_px,
         capture_findings=_capture_findings(profile, args.capture),
     )
-    print(json.dumps(check_to_dict(result), indent=2) if args.json else format_check(result))
+    # EXIF text (a camera's model) is a file's: shown, never obeyed by the terminal
+    print(json.dumps(check_to_dict(result), indent=2) if args.json
+          else visible(format_check(result)))
     return 1 if result.findings else 0
 
 
