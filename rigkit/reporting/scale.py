@@ -37,7 +37,9 @@ from rigkit.errors import InputError
 from rigkit.rig.calibration import (
     GOAL_PCT,
     MIN_CHECKED,
+    PRIOR_CONSTANT,
     PRIOR_SCALE,
+    PRIOR_SHAPE,
     Check,
     LaserTarget,
     ScaleFit,
@@ -516,24 +518,30 @@ def _test_lines(fit: ScaleFit) -> list[str]:
     return lines
 
 
+_PRIOR_SOURCES = {PRIOR_SCALE: "tape", PRIOR_SHAPE: "lens spec, tape",
+                  PRIOR_CONSTANT: "laser, a priori 0"}
+
+
 def _residual_lines(fit: ScaleFit) -> list[str]:
     rows = []
     for r in fit.residuals:
         if r.target is not None:
             t = r.target
             rows.append([r.name, f"{t.laser_m:.2f}", f"{t.estimate_m:.2f}",
-                         f"{r.residual_pct:+.3f}", f"{r.w:+.2f}", f"{r.redundancy:.2f}",
-                         ""])
+                         f"{r.residual_pct:+.3f} %", f"{r.w:+.2f}",
+                         f"{r.redundancy:.2f}", ""])
         else:
-            what = "tape" if r.name == PRIOR_SCALE else "spec"
-            rows.append([f"{r.name} ({what})", "", "", f"{r.residual_pct:+.3f}",
-                         f"{r.w:+.2f}", f"{r.redundancy:.2f}", "prior"])
+            what = _PRIOR_SOURCES[r.name]
+            value = (f"{r.residual_pct:+.3f} m" if r.name == PRIOR_CONSTANT
+                     else f"{r.residual_pct:+.3f} %")
+            rows.append([f"{r.name} ({what})", "", "", value, f"{r.w:+.2f}",
+                         f"{r.redundancy:.2f}", "prior"])
     for rejected in fit.rejected:
         t = rejected.target
         rows.append([t.name, f"{t.laser_m:.2f}", f"{t.estimate_m:.2f}",
-                     f"{rejected.miss_pct:+.3f}", f"{rejected.w:.1f}", "",
+                     f"{rejected.miss_pct:+.3f} %", f"{rejected.w:.1f}", "",
                      "REJECTED: a blunder"])
-    table = render_table(["row", "laser m", "estimate m", "residual %", "w", "r", ""],
+    table = render_table(["row", "laser m", "estimate m", "residual", "w", "r", ""],
                          rows, left=(0, 6), indent=2)
     lines = ["residuals (the fit minus the observation; w standardised, r redundancy; "
              "blunders beyond |w| 3.29):", table.rstrip()]
@@ -576,12 +584,12 @@ def _laser_lines(fit: ScaleFit, profile: RigProfile) -> list[str]:
     where = (f"the profile's rangefinder offset (right {offset[0]:+.3f}, up "
              f"{offset[1]:+.3f}, forward {offset[2]:+.3f} m)" if offset is not None
              else "no rangefinder offset in the profile: its aperture taken at the camera's")
-    if fit.laser_constant_m is not None:
-        value, sigma = fit.laser_constant_m
-        constant = f"the targets put it at {value:+.2f} +- {sigma:.2f} m (not applied)"
-    elif math.isfinite(fit.laser_constant_sigma_m):
-        constant = (f"assumed 0 m: the targets would fix it only to "
-                    f"+-{fit.laser_constant_sigma_m:.2f} m")
+    value, sigma = fit.laser_constant_m
+    if fit.laser_constant_seen:
+        constant = (f"{value:+.2f} +- {sigma:.2f} m, determined by the targets (a priori 0 "
+                    f"+- {fit.laser_constant_prior_m:.2f} m)")
     else:
-        constant = "assumed 0 m: the targets cannot see it"
-    return [f"laser     additive constant {constant}; {where}, assumed"]
+        constant = (f"assumed 0 +- {fit.laser_constant_prior_m:.2f} m (one reading's sigma): "
+                    f"the targets do not determine it (they leave {value:+.2f} +- "
+                    f"{sigma:.2f} m)")
+    return [f"laser     additive constant {constant}; {where}"]

@@ -53,11 +53,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from rigkit.errors import InputError
-from rigkit.rig.profile import Baseline, Calibration, RigProfile
+from rigkit.rig.profile import Baseline, Calibration, RangefinderSpec, RigProfile
 
 CRITICAL_W = 3.29
 """A standardised residual beyond this marks a blunder (two-sided alpha 0.001, Baarda's
 usual critical value for data snooping)."""
+GROSS_W = 10.0
+"""Gross errors are found first, each target alone against the profile's values beyond
+this many sigmas (its own, the tape's and the stretch f*C_lr's tolerance allows): about
+10 % off under a 2 cm tape; two wild readings would otherwise drag the fit between them
+and hide each other."""
 INSEPARABLE_RHO = 0.9
 """Two rows whose standardised residuals correlate beyond this cannot be told apart: a
 blunder in either looks the same."""
@@ -82,8 +87,15 @@ GOAL_PCT = 1.0
 
 PRIOR_SHAPE = "f*C_lr"
 PRIOR_SCALE = "C_lb"
+PRIOR_CONSTANT = "laser c"
+_PRIORS = (PRIOR_SHAPE, PRIOR_SCALE, PRIOR_CONSTANT)
+"""The a-priori rows, in the order of the unknowns a, k, c."""
 _PRIOR_WORDS = {PRIOR_SHAPE: "the profile's f and C_lr (lens spec and tape)",
-                PRIOR_SCALE: "the tape's C_lb"}
+                PRIOR_SCALE: "the tape's C_lb",
+                PRIOR_CONSTANT: "the laser's additive constant (a priori 0)"}
+CONSTANT_SEEN = 0.5
+"""The laser's additive constant is determined by the targets (and written into the
+profile's rangefinder offset) where they bring its sigma below this share of its prior's."""
 
 
 @dataclass(frozen=True)
@@ -127,7 +139,8 @@ class Check:
 class Residual:
     """A row of the final adjustment: its residual (the fit minus the observation; for a
     target its calibrated range minus its laser, % of range; for a prior the fitted
-    factor minus 1, %), its standardised residual ``w`` and redundancy number ``r``."""
+    factor minus 1, %, or for the laser's constant its value, m), its standardised
+    residual ``w`` and redundancy number ``r``."""
 
     name: str
     residual_pct: float
@@ -175,8 +188,10 @@ class ScaleFit:
     leave-one-out (twins left out together; empty below :data:`MIN_CHECKED` targets);
     ``held_out``: targets held out of the fit and checked against it; ``runs``: each run's
     own scale, and ``one_rig_chance`` the chance of their spread (NaN for one run);
-    ``laser_constant_m``: an additive constant of the laser the targets determine
-    (value, sigma) or None where they cannot (it is then assumed 0)."""
+    ``laser_constant_m``: the laser's additive constant (value, sigma, m; a reading is
+    the true range plus it), a priori 0 +- ``laser_constant_prior_m``;
+    ``laser_constant_seen`` where the targets determine it (it is then written into the
+    profile's rangefinder offset; else it stays assumed)."""
 
     scale: float
     scale_sigma: float
@@ -198,8 +213,9 @@ class ScaleFit:
     held_out: tuple[Check, ...] = ()
     runs: tuple[RunScale, ...] = ()
     one_rig_chance: float = math.nan
-    laser_constant_m: tuple[float, float] | None = None
-    laser_constant_sigma_m: float = math.inf
+    laser_constant_m: tuple[float, float] = (0.0, math.inf)
+    laser_constant_prior_m: float = math.inf
+    laser_constant_seen: bool = False
     shape_targets_sigma: float = math.inf
 
     @property
@@ -219,10 +235,22 @@ class ScaleFit:
 
 
 @dataclass(frozen=True)
+class _Model:
+    """Which unknowns an adjustment fits beside k and c (the laser's additive constant,
+    m, always, with its prior): a, f*C_lr's factor, where ``shape`` (else held at 1)."""
+
+    shape: bool
+
+
+HELD = _Model(False)
+
+
+@dataclass(frozen=True)
 class _Adjustment:
-    """One weighted least squares: ``params`` (a, k) with a held at 1 where ``held``,
-    their covariance (2, 2) (a priori, not scaled), the rows' names, whitened residuals
-    (fit minus observation over sigma), hat-matrix (rows, rows), chi-square and dof."""
+    """One weighted least squares: ``params`` (a, k, c), those held at 1, 1 and 0 where
+    ``model`` says, their covariance (3, 3) (a priori, not scaled; zero for the held),
+    the rows' names, whitened residuals (fit minus observation over sigma), the hat
+    matrix (rows, rows), chi-square and dof."""
 
     params: np.ndarray
     cov: np.ndarray
@@ -231,8 +259,12 @@ class _Adjustment:
     hat: np.ndarray
     chi2: float
     dof: int
-    held: bool
+    model: _Model
     targets: tuple[LaserTarget, ...] = field(default=())
+
+    @property
+    def held(self) -> bool:
+        return not self.model.shape
 
     def redundancy(self) -> np.ndarray:
         return np.clip(1.0 - np.diag(self.hat), 0.0, 1.0)
@@ -254,58 +286,64 @@ class _Adjustment:
 
 
 def _rows(targets: Sequence[LaserTarget]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Design (n, 2) for (a, k), observations 1/e (n,) and their sigma (n,), in 1/m."""
+    """Design (n, 3) for (a, k, c), observations 1/e (n,) and their sigma (n,), in 1/m.
+    A laser reading c long: 1/(t - c) = 1/t + c/t**2 to first order (times a ~ 1)."""
     t = np.array([x.laser_m for x in targets], float)
     e = np.array([x.estimate_m for x in targets], float)
     z0 = np.array([x.reference_m for x in targets], float)
     sigma_e = np.hypot([x.estimate_sigma_m for x in targets], SHAPE_FLOOR * e)
     sigma_t = np.array([x.laser_sigma_m for x in targets], float)
-    design = np.column_stack([1 / t - 1 / z0, 1 / z0]) if len(targets) else np.zeros((0, 2))
+    design = (np.column_stack([1 / t - 1 / z0, 1 / z0, 1 / t**2]) if len(targets)
+              else np.zeros((0, 3)))
     return design, 1 / e, np.hypot(sigma_e / e**2, sigma_t / t**2)
 
 
-def _adjust(targets: Sequence[LaserTarget], priors: dict[str, float], held: bool
+_FIXED = np.array([1.0, 1.0, 0.0])
+"""The values of a, k and c where they are held."""
+
+
+def _adjust(targets: Sequence[LaserTarget], priors: dict[str, float], model: _Model
             ) -> _Adjustment:
-    """(a, k) from ``targets`` and the ``priors`` present (name -> relative sigma, rows
-    a = 1 and k = 1); a fixed at 1 where ``held``. InputError where the rows do not
-    determine the unknowns."""
+    """(a, k, c) from ``targets`` and the ``priors`` present (name -> sigma: relative
+    for a and k, rows a = 1 and k = 1; m for c, row c = 0), a held at 1 where ``model``
+    says. InputError where the rows do not determine the unknowns."""
     design, y, sigma = _rows(targets)
     names = [t.name for t in targets]
-    for column, name in enumerate((PRIOR_SHAPE, PRIOR_SCALE)):
-        if name in priors and not (held and column == 0):
-            row = np.zeros((1, 2))
+    free = np.array([model.shape, True, True])
+    for column, name in enumerate(_PRIORS):
+        if name in priors and free[column]:
+            row = np.zeros((1, 3))
             row[0, column] = 1.0
-            design, y = np.vstack([design, row]), np.append(y, 1.0)
+            design, y = np.vstack([design, row]), np.append(y, _FIXED[column])
             sigma = np.append(sigma, priors[name])
             names.append(name)
-    if held:  # a = 1 exactly: 1/e - (1/t - 1/z0) = k / z0
-        y, design = y - design[:, 0], design[:, 1:]
-    A, b = design / sigma[:, None], y / sigma
+    y = y - design[:, ~free] @ _FIXED[~free]
+    A, b = design[:, free] / sigma[:, None], y / sigma
     normal = A.T @ A
     if len(b) < A.shape[1] or np.linalg.cond(normal) > 1e14:
         raise InputError("the laser targets do not determine the scale (too few, or all "
                          "at one range where f*C_lr is free)")
-    cov = np.linalg.inv(normal)
-    params = cov @ A.T @ b
-    residuals = A @ params - b
-    hat = A @ cov @ A.T
-    if held:
-        params, cov = np.array([1.0, params[0]]), np.array([[0.0, 0.0], [0.0, cov[0, 0]]])
-    return _Adjustment(params, cov, tuple(names), residuals, hat,
-                       float(residuals @ residuals), len(b) - A.shape[1], held,
+    inverse = np.linalg.inv(normal)
+    solution = inverse @ A.T @ b
+    residuals = A @ solution - b
+    params, cov = _FIXED.copy(), np.zeros((3, 3))
+    params[free] = solution
+    cov[np.ix_(free, free)] = inverse
+    return _Adjustment(params, cov, tuple(names), residuals, A @ inverse @ A.T,
+                       float(residuals @ residuals), len(b) - A.shape[1], model,
                        tuple(targets))
 
 
 def _prediction(t: LaserTarget, adj: _Adjustment) -> tuple[float, float, float]:
     """The calibrated range (m) of ``t``'s estimate under ``adj``, its miss against the
-    laser and that miss's sigma, both % of range."""
+    laser (less the fitted constant) and that miss's sigma, both % of range."""
     design, y, sigma = _rows([t])
-    a, k = adj.params
+    a, k, c = adj.params
     predicted = float(design[0] @ adj.params)
     spread = float(design[0] @ adj.cov @ design[0])
     calibrated = a / (y[0] - (k - a) / t.reference_m)
     miss_sigma = math.sqrt(sigma[0] ** 2 + spread) / abs(predicted) * 100
-    return calibrated, 100 * (calibrated - t.laser_m) / t.laser_m, miss_sigma
+    return calibrated, 100 * (calibrated - (t.laser_m - c)) / t.laser_m, miss_sigma
 
 
 # ---------------------------------------------------------------------- the fit
@@ -314,8 +352,10 @@ def _prediction(t: LaserTarget, adj: _Adjustment) -> tuple[float, float, float]:
 def fit_scale(targets: Sequence[LaserTarget], profile: RigProfile, *,
               held_out: Sequence[LaserTarget] = (), overrule: bool = False) -> ScaleFit:
     """The scale the ``targets`` (of runs with ``profile``'s geometry) imply, and the
-    ``held_out`` targets checked against it. ``overrule``: a prior the lasers find beyond
-    its tolerance is left out (the user says the tape is wrong) instead of refused.
+    ``held_out`` targets checked against it. The priors: the profile's tolerances for a
+    and k, and for the laser's additive constant its readings' own sigma (the median of
+    the targets'). ``overrule``: a prior the lasers find beyond its tolerance is left
+    out (the user says the tape is wrong) instead of refused.
     InputError (one line, naming the targets) where none is usable, a blunder cannot be
     told from another row, too many are blunders, a prior is beyond its tolerance, or the
     runs are not one rig."""
@@ -324,11 +364,14 @@ def fit_scale(targets: Sequence[LaserTarget], profile: RigProfile, *,
         raise InputError("no laser target with both a reading and a depth estimate: "
                          "nothing to calibrate the scale from")
     usable, duplicates = _merge_duplicates(usable)
-    priors = dict(zip((PRIOR_SHAPE, PRIOR_SCALE), _priors(profile), strict=True))
+    laser = float(np.median([t.laser_sigma_m for t in usable]))
+    priors = dict(zip(_PRIORS, (*_priors(profile), laser), strict=True))
     tolerances = dict(priors)
     kept, rejected, overruled = _snoop(usable, priors, tolerances, overrule, profile)
     adj = _final(kept, priors, tolerances)
+    _plausible(adj, kept, profile)
     chance = _chance(adj.chi2, adj.dof) if adj.dof else math.nan
+    runs, one_rig = _one_rig(kept, adj)
     if adj.dof and chance < CONSISTENT_P:
         worst = int(np.argmax(np.abs(adj.standardised())))
         raise InputError(
@@ -336,20 +379,17 @@ def fit_scale(targets: Sequence[LaserTarget], profile: RigProfile, *,
             f"of them to blame (chi-square {adj.chi2:.1f} on {adj.dof} degrees of freedom, "
             f"chance {chance:.1g}; the worst is {adj.names[worst]}): a shape error or a "
             "wrong focal length? check the targets, or calibrate each session alone")
-    _plausible(adj, kept, profile)
     sigma0 = math.sqrt(adj.chi2 / adj.dof) if adj.dof else math.nan
     inflate = max(1.0, sigma0**2) if adj.dof else 1.0
     cov = adj.cov * inflate
-    runs, one_rig = _one_rig(kept, adj, inflate)
-    a, k = adj.params
-    shape_alone = _shape_sigma_alone(kept, priors)
-    constant = _laser_constant(kept, adj, priors, inflate)
+    a, k, c = adj.params
+    constant_sigma = float(math.sqrt(cov[2, 2]))
     return ScaleFit(
         scale=float(k), scale_sigma=math.hypot(math.sqrt(cov[1, 1]), _offsets_share(kept)),
         map_scale_sigma=float(math.sqrt(cov[1, 1])),
         shape=float(a), shape_sigma=float(math.sqrt(cov[0, 0])), shape_fitted=not adj.held,
         used=tuple(kept),
-        checks=tuple(_leave_out(t, kept, priors, adj.held) for t in kept)
+        checks=tuple(_leave_out(t, kept, priors, adj.model) for t in kept)
         if len(kept) >= MIN_CHECKED else (),
         chi2=adj.chi2, dof=adj.dof, chance=chance, sigma0=sigma0,
         reference_m=_reference(kept),
@@ -357,8 +397,11 @@ def fit_scale(targets: Sequence[LaserTarget], profile: RigProfile, *,
         rejected=tuple(rejected), duplicates=tuple(duplicates), overruled=tuple(overruled),
         held_out=tuple(_held_check(t, adj, inflate) for t in held_out if _usable(t)),
         runs=runs, one_rig_chance=one_rig,
-        laser_constant_m=constant[0], laser_constant_sigma_m=constant[1],
-        shape_targets_sigma=shape_alone,
+        laser_constant_m=(float(c), constant_sigma),
+        laser_constant_prior_m=tolerances[PRIOR_CONSTANT],
+        laser_constant_seen=PRIOR_CONSTANT not in priors
+        or constant_sigma < CONSTANT_SEEN * tolerances[PRIOR_CONSTANT],
+        shape_targets_sigma=_shape_sigma_alone(kept, priors),
     )
 
 
@@ -369,7 +412,7 @@ something else (a tape is not off by half)."""
 
 def _plausible(adj: _Adjustment, targets: Sequence[LaserTarget], profile: RigProfile
                ) -> None:
-    a, k = adj.params
+    a, k, _ = adj.params
     if PLAUSIBLE[0] <= k <= PLAUSIBLE[1] and PLAUSIBLE[0] <= a <= PLAUSIBLE[1]:
         return
     names = ", ".join(t.name for t in targets)
@@ -444,7 +487,8 @@ def _sees_shape(targets: Sequence[LaserTarget], priors: dict[str, float],
 def _shape_sigma_alone(targets: Sequence[LaserTarget], priors: dict[str, float]) -> float:
     """The sigma of a from the targets and C_lb's prior only (inf where undetermined)."""
     try:
-        adj = _adjust(targets, {k: v for k, v in priors.items() if k != PRIOR_SHAPE}, False)
+        adj = _adjust(targets, {k: v for k, v in priors.items() if k != PRIOR_SHAPE},
+                      _Model(True))
     except InputError:
         return math.inf
     return float(math.sqrt(adj.cov[0, 0]))
@@ -452,19 +496,18 @@ def _shape_sigma_alone(targets: Sequence[LaserTarget], priors: dict[str, float])
 
 def _final(targets: Sequence[LaserTarget], priors: dict[str, float],
            tolerances: dict[str, float]) -> _Adjustment:
-    """The adjustment of ``targets`` with a fitted where they see it, else held."""
-    held = not _sees_shape(targets, priors, tolerances)
-    return _adjust(targets, priors, held)
+    """The adjustment of ``targets`` with a fitted where they see it, else held at 1."""
+    return _adjust(targets, priors, _Model(_sees_shape(targets, priors, tolerances)))
 
 
 def _snoop(targets: list[LaserTarget], priors: dict[str, float],
            tolerances: dict[str, float], overrule: bool, profile: RigProfile
            ) -> tuple[list[LaserTarget], list[Rejected], list[tuple[str, float]]]:
-    """Data snooping: leave out the worst row beyond CRITICAL_W and adjust again, until
-    none is. Changes ``priors`` where one is overruled. InputError where the worst cannot
-    be told from another row, is a prior not overruled, or would leave as many targets
-    out as in."""
-    rejected: list[Rejected] = []
+    """Gross errors first, then data snooping: leave out the worst row beyond
+    CRITICAL_W and adjust again, until none is. Changes ``priors`` where one is
+    overruled. InputError where the worst cannot be told from another row, is a prior
+    not overruled, or would leave as many targets out as in."""
+    targets, rejected = _without_gross(targets, priors, overrule)
     overruled: list[tuple[str, float]] = []
     while True:
         adj = _final(targets, priors, tolerances)
@@ -475,29 +518,89 @@ def _snoop(targets: list[LaserTarget], priors: dict[str, float],
         rho = np.nan_to_num(adj.correlation(worst))
         suspects = [adj.names[j] for j in range(len(w))
                     if j == worst or abs(rho[j]) >= INSEPARABLE_RHO]
-        blamed = [n for n in suspects if n in priors]
+        blamed = [n for n in suspects if n in priors and _determined(targets, priors, n)]
         if overrule and blamed:  # the user says the profile's value is what is wrong
             overruled.append((blamed[0], float(abs(w[worst]))))
             del priors[blamed[0]]
             continue
-        if len(suspects) > 1:
-            raise InputError(_inseparable(suspects, w[worst], targets))
-        name = suspects[0]
+        name = suspects[0] if len(suspects) == 1 else _arbitrate(suspects, targets, priors)
+        if name is None:
+            raise InputError(_inseparable(suspects, w[worst], targets, rejected))
         if name in priors:
             raise InputError(_beyond_tolerance(name, targets, priors, w[worst], tolerances,
                                                profile))
         bad = next(t for t in targets if t.name == name)
         miss = _miss(bad, targets, priors, tolerances)
-        if len(targets) - 1 <= len(rejected) + 1:
-            named = ", ".join([r.target.name for r in rejected] + [name])
-            raise InputError(
-                f"{named} disagree with the other targets and the profile beyond their "
-                f"sigmas (the worst, {name}, by {miss:+.1f} %, w = {abs(w[worst]):.1f}); "
-                f"with {len(targets) + len(rejected)} targets no more can be left out: "
-                "check their readings (a laser on something nearer?), or hold them out "
-                "(--hold-out)")
+        _minority(len(targets) + len(rejected), [*rejected, Rejected(bad, miss, abs(w[worst]))])
         rejected.append(Rejected(bad, miss, float(abs(w[worst]))))
         targets = [t for t in targets if t is not bad]
+
+
+def _determined(targets: Sequence[LaserTarget], priors: dict[str, float], name: str) -> bool:
+    """Whether the targets determine the unknowns without the prior ``name``."""
+    try:
+        _adjust(targets, {k: v for k, v in priors.items() if k != name}, HELD)
+    except InputError:
+        return False
+    return True
+
+
+def _minority(count: int, rejected: Sequence[Rejected]) -> None:
+    """InputError naming ``rejected`` where they are not fewer than the targets kept."""
+    if count - len(rejected) > len(rejected):
+        return
+    worst = max(rejected, key=lambda r: r.w)
+    named = ", ".join(r.target.name for r in rejected)
+    raise InputError(
+        f"{named} disagree with the other targets and the profile beyond their sigmas (the "
+        f"worst, {worst.target.name}, by {worst.miss_pct:+.1f} %, w = {worst.w:.1f}); with "
+        f"{count} targets no more can be left out: check their readings (a laser on "
+        "something nearer?), or hold them out (--hold-out)")
+
+
+def _without_gross(targets: list[LaserTarget], priors: dict[str, float], overrule: bool
+                   ) -> tuple[list[LaserTarget], list[Rejected]]:
+    """The targets without gross errors: each one judged alone against the profile's
+    values, beyond :data:`GROSS_W` (so two wild readings cannot hide each other, as they
+    do in a fit they drag between them). None where the profile's values are overruled."""
+    if overrule or PRIOR_SCALE not in priors or len(targets) < MIN_CHECKED:
+        return targets, []
+    scores = [_prior_score(t, priors) for t in targets]
+    gross = [Rejected(t, _prior_miss(t), score)
+             for t, score in zip(targets, scores, strict=True) if score > GROSS_W]
+    if gross:
+        _minority(len(targets), gross)
+    return [t for t in targets if not any(t is g.target for g in gross)], gross
+
+
+def _prior_score(t: LaserTarget, priors: dict[str, float]) -> float:
+    """How many sigmas the C_lb factor ``t`` alone implies (f*C_lr at 1) lies from the
+    tape's, its sigma widened by the stretch f*C_lr's tolerance allows at its range."""
+    design, y, sigma = _rows([t])
+    k = (y[0] - design[0, 0]) / design[0, 1]
+    spread = math.hypot(sigma[0] / design[0, 1], priors[PRIOR_SCALE],
+                        priors.get(PRIOR_SHAPE, 0.0) * abs(t.reference_m / t.laser_m - 1))
+    return float(abs(k - 1) / spread)
+
+
+def _prior_miss(t: LaserTarget) -> float:
+    """``t``'s estimate against its laser, % of range, under the profile as it is."""
+    return 100 * (t.estimate_m - t.laser_m) / t.laser_m
+
+
+def _arbitrate(suspects: list[str], targets: Sequence[LaserTarget],
+               priors: dict[str, float]) -> str | None:
+    """Of targets the others cannot tell apart, the one the profile's own values say is
+    the blunder: the worst of those the priors alone reject, where at least one of them
+    agrees with the priors (None: a prior is among them, or the priors cannot tell)."""
+    if any(name in priors for name in suspects) or PRIOR_SCALE not in priors:
+        return None
+    scores = {name: _prior_score(next(x for x in targets if x.name == name), priors)
+              for name in suspects}
+    bad = [n for n, score in scores.items() if score > CRITICAL_W]
+    if not bad or len(bad) == len(scores):
+        return None
+    return max(bad, key=scores.__getitem__)
 
 
 def _miss(t: LaserTarget, targets: Sequence[LaserTarget], priors: dict[str, float],
@@ -505,17 +608,19 @@ def _miss(t: LaserTarget, targets: Sequence[LaserTarget], priors: dict[str, floa
     """``t``'s miss against the fit of the other targets, % of range."""
     others = [x for x in targets if x is not t]
     try:
-        return _prediction(t, _adjust(others, priors,
-                                      not _sees_shape(others, priors, tolerances)))[1]
+        return _prediction(t, _final(others, priors, tolerances))[1]
     except InputError:
         return math.nan
 
 
-def _inseparable(suspects: list[str], w: float, targets: Sequence[LaserTarget]) -> str:
+def _inseparable(suspects: list[str], w: float, targets: Sequence[LaserTarget],
+                 rejected: Sequence[Rejected]) -> str:
     words = [_PRIOR_WORDS.get(n, n) for n in suspects]
     count = len(targets)
-    return (f"{' and '.join(words)} disagree beyond their sigmas (w = {abs(w):.1f}), and "
-            f"{count} target{'s' if count != 1 else ''} cannot tell which is wrong: check "
+    before = (f"{', '.join(r.target.name for r in rejected)} left out as blunders, then "
+              if rejected else "")
+    return (f"{before}{' and '.join(words)} disagree beyond their sigmas (w = {abs(w):.1f}), "
+            f"and {count} target{'s' if count != 1 else ''} cannot tell which is wrong: check "
             "those readings (a laser on something nearer?) or add targets; nothing fitted")
 
 
@@ -523,18 +628,22 @@ def _beyond_tolerance(name: str, targets: Sequence[LaserTarget], priors: dict[st
                       w: float, tolerances: dict[str, float], profile: RigProfile) -> str:
     """The refusal of a prior the lasers find beyond its tolerance, naming them."""
     alone = {k: v for k, v in priors.items() if k != name}
-    column = 1 if name == PRIOR_SCALE else 0
+    column = _PRIORS.index(name)
+    model = _Model(column == 0 or _sees_shape(targets, alone, tolerances))
     try:
-        adj = _adjust(targets, alone, column == 1 and not _sees_shape(targets, alone,
-                                                                      tolerances))
+        adj = _adjust(targets, alone, model)
         value, sigma = adj.params[column], math.sqrt(adj.cov[column, column])
     except InputError:
         value = sigma = math.nan
     lb = profile.baseline_lb
-    if column == 1:
+    if name == PRIOR_SCALE:
         said = f"C_lb at {lb.value_m * value:.4f} +- {lb.value_m * sigma:.4f} m"
         prior = f"the tape's {lb.value_m:.4f} +- {lb.value_m * tolerances[name]:.4f} m"
         fix = "re-tape C_lb"
+    elif name == PRIOR_CONSTANT:
+        said = f"the laser's additive constant at {value:+.2f} +- {sigma:.2f} m"
+        prior = f"its a-priori 0 +- {tolerances[name]:.2f} m (one reading's sigma)"
+        fix = "check the rangefinder's offset in the profile and the laser's own setting"
     else:
         said = f"f*C_lr at x {value:.4f} +- {sigma:.4f} of the profile's"
         prior = f"the profile's f and C_lr (+-{100 * tolerances[name]:.2f} %)"
@@ -553,21 +662,22 @@ def _residual_table(adj: _Adjustment) -> tuple[Residual, ...]:
             t = adj.targets[i]
             out.append(Residual(name, _prediction(t, adj)[1], float(w[i]), float(r[i]), t))
         else:
-            column = 1 if name == PRIOR_SCALE else 0
-            out.append(Residual(name, 100 * (adj.params[column] - 1), float(w[i]),
-                                float(r[i])))
+            column = _PRIORS.index(name)
+            value = adj.params[column] - _FIXED[column]
+            out.append(Residual(name, value if name == PRIOR_CONSTANT else 100 * value,
+                                float(w[i]), float(r[i])))
     return tuple(out)
 
 
 def _leave_out(t: LaserTarget, targets: Sequence[LaserTarget], priors: dict[str, float],
-               held: bool) -> Check:
+               model: _Model) -> Check:
     """``t`` under the fit without it and its twins."""
     group = twins(t, targets)
     others = [x for x in targets if not any(x is g for g in group)]
     try:
-        adj = _adjust(others, priors, held)
+        adj = _adjust(others, priors, model)
     except InputError:
-        adj = _adjust(others, priors, True)
+        adj = _adjust(others, priors, HELD)
     calibrated, miss, sigma = _prediction(t, adj)
     return Check(t, float(calibrated), miss, sigma)
 
@@ -593,7 +703,7 @@ def _offsets_share(targets: Sequence[LaserTarget]) -> float:
     return 1 / math.sqrt(sum(1 / f**2 for f in runs.values()))
 
 
-def _one_rig(targets: Sequence[LaserTarget], adj: _Adjustment, inflate: float
+def _one_rig(targets: Sequence[LaserTarget], adj: _Adjustment
              ) -> tuple[tuple[RunScale, ...], float]:
     """Each run's own scale (its targets alone, f*C_lr as fitted) and the chance that
     one rig gives scales as far apart; InputError below ONE_RIG_P."""
@@ -602,11 +712,11 @@ def _one_rig(targets: Sequence[LaserTarget], adj: _Adjustment, inflate: float
     for run in names:
         own = [t for t in targets if t.run == run]
         design, y, sigma = _rows(own)
-        a = adj.params[0]
-        rhs = (y - a * design[:, 0]) / sigma
+        a, _, c = adj.params
+        rhs = (y - a * design[:, 0] - c * design[:, 2]) / sigma
         column = design[:, 1] / sigma
         k = float(column @ rhs / (column @ column))
-        fit_sigma = math.sqrt(inflate / float(column @ column))
+        fit_sigma = math.sqrt(1 / float(column @ column))
         scales.append(RunScale(run, k, math.hypot(fit_sigma, own[0].offset_fraction),
                                len(own)))
     if len(scales) < 2:
@@ -623,36 +733,6 @@ def _one_rig(targets: Sequence[LaserTarget], adj: _Adjustment, inflate: float
             f"factor {said}: were they taken with one rig, taped once? calibrate each "
             "alone")
     return tuple(scales), chance
-
-
-def _laser_constant(targets: Sequence[LaserTarget], adj: _Adjustment,
-                    priors: dict[str, float], inflate: float
-                    ) -> tuple[tuple[float, float] | None, float]:
-    """An additive constant c of the laser (reading = true range + c) where the targets
-    fix it better than one reading's sigma: (c, sigma) in m, else None; and the sigma
-    they would fix it to. 1/(t - c) = 1/t + c/t**2 to first order: a third column."""
-    if len(targets) < MIN_CHECKED + 1:
-        return None, math.inf
-    design, y, sigma = _rows(targets)
-    t = np.array([x.laser_m for x in targets])
-    if adj.held:
-        y, design = y - design[:, 0], design[:, 1:]
-    A = np.column_stack([design, 1 / t**2]) / sigma[:, None]
-    b = y / sigma
-    present = [n for n in (PRIOR_SHAPE, PRIOR_SCALE)
-               if n in priors and not (adj.held and n == PRIOR_SHAPE)]
-    for n in present:
-        row = np.zeros(A.shape[1])
-        row[0 if adj.held or n == PRIOR_SHAPE else 1] = 1 / priors[n]
-        A, b = np.vstack([A, row]), np.append(b, 1 / priors[n])
-    normal = A.T @ A
-    if np.linalg.cond(normal) > 1e14:
-        return None, math.inf
-    cov = np.linalg.inv(normal)
-    value = float((cov @ A.T @ b)[-1])
-    c_sigma = float(math.sqrt(cov[-1, -1] * inflate))
-    laser = float(np.median([x.laser_sigma_m for x in targets]))
-    return ((value, c_sigma) if c_sigma < laser else None), c_sigma
 
 
 def _chance(chi2: float, dof: int) -> float:
@@ -715,10 +795,36 @@ def calibrated_profile(profile: RigProfile, fit: ScaleFit, record: Calibration
         lr = profile.baseline_lr
         changes.append(f"C_lr {lr.value_m:.4f} +- {lr.tolerance_m:.4f} m -> "
                        f"{baseline_lr.value_m:.4f} +- {baseline_lr.tolerance_m:.4f} m")
+    rangefinder = _rangefinder(profile, fit, changes, kept)
     out = replace(profile, name=calibrated_name(profile.name, record.date_utc),
                   cameras=cameras, baseline_lr=baseline_lr, baseline_lb=baseline_lb,
+                  rangefinder=rangefinder,
                   calibration=replace(record, changes=tuple(changes + kept)))
     return CalibratedValues(out, tuple(changes), tuple(kept))
+
+
+MAX_LASER_OFFSET_M = 10.0
+"""The largest rangefinder offset a profile takes (rig.profile's bound), m."""
+
+
+def _rangefinder(profile: RigProfile, fit: ScaleFit, changes: list[str], kept: list[str]
+                 ) -> RangefinderSpec | None:
+    """The profile's rangefinder with the laser's additive constant, where the targets
+    determine it, taken into its forward offset: a laser reading c long ranges from an
+    aperture c behind where the profile put it."""
+    spec = profile.rangefinder
+    if not fit.laser_constant_seen:
+        return spec
+    c, sigma = fit.laser_constant_m
+    spec = spec or RangefinderSpec("manual", None, None, None)
+    right, up, forward = spec.offset_m or (0.0, 0.0, 0.0)
+    if abs(forward - c) > MAX_LASER_OFFSET_M:
+        kept.append(f"the laser's additive constant {c:+.2f} +- {sigma:.2f} m not written: "
+                    f"it would put the rangefinder {forward - c:+.1f} m forward")
+        return profile.rangefinder
+    changes.append(f"rangefinder forward offset {forward:+.3f} m -> {forward - c:+.3f} m (the "
+                   f"laser's additive constant {c:+.2f} +- {sigma:.2f} m)")
+    return replace(spec, offset_m=(right, up, forward - c))
 
 
 def calibrated_name(name: str, date_utc: str) -> str:
