@@ -319,6 +319,8 @@ def _unique(paths: Sequence[Path], before: Sequence[SessionRun], notes: list[str
                          "taken once")
             continue
         run = read_run(Path(path))
+        if runs:
+            _same_rig(run, runs[0], runs[0].session.rig())
         twin = next((r for r in runs if r.fingerprint == run.fingerprint), None)
         if twin is not None:
             notes.append(f"{plain(str(path))}: the same frames as {twin.label} (a copy of "
