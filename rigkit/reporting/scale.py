@@ -127,16 +127,15 @@ def frames_fingerprint(session: Session) -> str:
 
 def scale_source(profile: RigProfile) -> str:
     """Where the rig's scale comes from, in one line: taped (the profile as measured), or
-    laser-calibrated, when and from which sessions."""
+    laser-calibrated, when and from which sessions (their targets, when they were taken)."""
     lb = profile.baseline_lb
-    value = f"C_lb {lb.value_m:.4f} +- {lb.tolerance_m:.4f} m"
+    value = f"C_lb {lb.value_m:.3f} +- {lb.tolerance_m:.3f} m"
     record = profile.calibration
     if record is None:
-        return f"taped: {value} as measured (rig {plain(profile.name)}, not calibrated)"
+        return f"taped ({value}, not laser-calibrated)"
     sessions = ", ".join(f"{plain(s.name)} ({len(s.used)} target{'s' if len(s.used) != 1 else ''}"
                          f", taken {plain(s.taken)})" for s in record.sessions)
-    return (f"laser-calibrated {record.date_utc[:10]} from {sessions}: {value} "
-            f"(rig {plain(profile.name)})")
+    return f"laser-calibrated {record.date_utc[:10]} from {sessions}: {value}"
 
 
 def calibration_targets(profile: RigProfile, session: Session) -> frozenset[str]:

@@ -471,10 +471,10 @@ def _calibration_source(value: Any, key: KeyPath) -> CalibrationSource:
     used = {}
     for name, pixel in keys["targets"].items():
         where = targets.child(str(name))
-        pair = where.sequence(pixel)
-        if len(pair) != 2:
+        if not isinstance(pixel, list) or len(pixel) != 2:
             raise where.error("must be the target's pixel [u, v]", pixel)
-        used[where.line(str(name))] = (where.number(pair[0], "px"), where.number(pair[1], "px"))
+        used[where.line(str(name))] = (where.number(pixel[0], "px"),
+                                       where.number(pixel[1], "px"))
     names = {part: tuple(key.child(part).item(i).line(str(n)) for i, n in enumerate(
         key.child(part).sequence(keys.get(part)))) for part in ("held_out", "rejected")}
     return CalibrationSource(

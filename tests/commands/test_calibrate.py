@@ -96,8 +96,7 @@ def test_process_and_report_say_what_the_lasers_imply(
     c_lb, sigma = float(said[1]), float(said[2])
     assert abs(c_lb - 2.0) < 2 * sigma < abs(c_lb - 2.0 * SHORT)  # the truth, not the tape
     assert "re-tape C_lb, or calibrate (rigkit rig calibrate)" in line
-    assert line.endswith("scale taped: C_lb 1.9700 +- 0.0200 m as measured (rig "
-                         "synthetic-taped, not calibrated)")
+    assert line.endswith("; scale taped (C_lb 1.970 +- 0.020 m, not laser-calibrated)")
 
 
 def test_a_session_given_twice_or_copied_is_taken_once(
