@@ -152,7 +152,8 @@ def _seed(seed: int, args: argparse.Namespace) -> Outcome:
     except InputError as exc:
         named = {name for name in bad if f"/{name}" in str(exc) or f"{name} " in str(exc)}
         ok = named == bad and bool(bad)
-        verdict = f"refused, naming {'every bad target' if ok else 'not ' + ','.join(sorted(bad - named))}"
+        missed = ",".join(sorted(bad - named)) or "none: no bad target"
+        verdict = f"refused, naming {'every bad target' if ok else 'not ' + missed}"
         print(f"        {exc}", flush=True)
         return Outcome(seed, mistakes, before, math.nan, math.nan, "-", gross or "-",
                        verdict, ok)
@@ -169,7 +170,8 @@ def _seed(seed: int, args: argparse.Namespace) -> Outcome:
     verdict = (f"{'pass' if ok else 'FAIL'}: |bias| {'<=' if abs(after) <= BAR_PCT else '>'} "
                f"{BAR_PCT} %, truth {'inside' if covered else 'OUTSIDE'} 2 sigma{overruled}")
     if left != bad:
-        verdict += f"; left out {','.join(sorted(left)) or 'none'} of bad {','.join(sorted(bad)) or 'none'}"
+        verdict += (f"; left out {','.join(sorted(left)) or 'none'} of bad "
+                    f"{','.join(sorted(bad)) or 'none'}")
     return Outcome(seed, mistakes, before, after, z, "fit" if fit.shape_fitted else "held",
                    ",".join(sorted(left)) or "-", verdict, ok)
 

@@ -15,7 +15,6 @@ from rigkit.capture.comparisons import (
 from rigkit.capture.session import Session, Target, utc_now
 from rigkit.rangefinder.ranging import profile_range_from_depth
 
-
 NEIGHBOURHOOD_WINDOWS = 9
 """The side, in windows, of the neighbourhood whose window-sized medians measure how
 much a target's median scatters."""

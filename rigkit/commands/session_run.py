@@ -198,7 +198,6 @@ def _show_data(session: Any) -> dict[str, Any]:
     from dataclasses import asdict
 
     from rigkit.capture import frame_problems, session_to_data
-
     from rigkit.reporting.scale import calibration_targets, scale_source
 
     data = session_to_data(session)

@@ -515,7 +515,7 @@ def _test_lines(fit: ScaleFit) -> list[str]:
     if len(fit.runs) > 1:
         lines.append(f"one rig   the sessions' own scales agree (chance "
                      f"{fit.one_rig_chance:.2f}): " + ", ".join(
-                         f"x {r.scale:.4f} +- {r.sigma:.4f}" for r in fit.runs))
+                         f"{r.run} x {r.scale:.4f} +- {r.sigma:.4f}" for r in fit.runs))
     return lines
 
 

@@ -132,9 +132,9 @@ def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOA
         headline = (f"no independent target: all {used} calibrated the rig and cannot check "
                     "it: mark a target the calibration did not use")
     else:
+        more = f" ({used} more calibrated the rig: not counted)" if used else ""
         headline = (f"{passed}/{len(counted)} {'independent ' if used else ''}targets within "
-                    f"{goal_pct:g} %{f' ({used} more calibrated the rig: not counted)' if used else ''}"
-                    f": {verdict}")
+                    f"{goal_pct:g} %{more}: {verdict}")
     return Verdict(done, headline, targets, _advice(rows, targets), scale, source)
 
 

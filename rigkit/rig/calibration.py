@@ -162,7 +162,8 @@ class Rejected:
 @dataclass(frozen=True)
 class RunScale:
     """One run's own scale (C_lb's factor with the fit's f * C_lr) and its sigma, the
-    run's offset share included: what the one-rig test compares."""
+    run's offset share included: what the one-rig test compares. ``run``: its name (its
+    targets' names before the ``/``, else its run key)."""
 
     run: str
     scale: float
@@ -428,8 +429,11 @@ def _usable(t: LaserTarget) -> bool:
         math.isfinite(s) and s >= 0 for s in (t.laser_sigma_m, t.estimate_sigma_m))
 
 
-def _merge_duplicates(targets: list[LaserTarget]
-                      ) -> tuple[list[LaserTarget], list[tuple[LaserTarget, tuple[LaserTarget, ...]]]]:
+Copies = list[tuple[LaserTarget, tuple[LaserTarget, ...]]]
+"""Targets and the copies of each merged into it."""
+
+
+def _merge_duplicates(targets: list[LaserTarget]) -> tuple[list[LaserTarget], Copies]:
     """One target per (run, pixel, reading): copies under other names are the same
     observation and count once."""
     kept: dict[tuple[str, object, float], LaserTarget] = {}
@@ -717,14 +721,15 @@ def _one_rig(targets: Sequence[LaserTarget], adj: _Adjustment
         column = design[:, 1] / sigma
         k = float(column @ rhs / (column @ column))
         fit_sigma = math.sqrt(1 / float(column @ column))
-        scales.append(RunScale(run, k, math.hypot(fit_sigma, own[0].offset_fraction),
+        label = own[0].name.rsplit("/", 1)[0] if "/" in own[0].name else run
+        scales.append(RunScale(label, k, math.hypot(fit_sigma, own[0].offset_fraction),
                                len(own)))
     if len(scales) < 2:
         return tuple(scales), math.nan
-    k = np.array([s.scale for s in scales])
+    factors = np.array([s.scale for s in scales])
     weights = 1 / np.array([s.sigma for s in scales]) ** 2
-    mean = float(weights @ k / weights.sum())
-    chi2 = float(weights @ (k - mean) ** 2)
+    mean = float(weights @ factors / weights.sum())
+    chi2 = float(weights @ (factors - mean) ** 2)
     chance = _chance(chi2, len(scales) - 1)
     if chance < ONE_RIG_P:
         said = "; ".join(f"{s.run}: x {s.scale:.4f} +- {s.sigma:.4f}" for s in scales)

@@ -61,7 +61,8 @@ def test_calibrating_fixes_the_scale_and_the_targets_then_prove_nothing(
     assert code == 0
     assert "fitted    5 laser target(s)" in printed
     assert "checked: 5/5 targets within 1 % of their laser" in printed
-    assert re.search(r"test      sigma0 \(a posteriori, of unit weight\) [\d.]+; chi-square", printed)
+    assert re.search(r"test      sigma0 \(a posteriori, of unit weight\) [\d.]+; "
+                     r"chi-square", printed)
     profile = load_rig(out)
     assert profile.name.startswith("synthetic-laser-calibrated-")
     calibrated = profile.baseline_lb
