@@ -23,7 +23,7 @@ import io
 import math
 import os
 from collections.abc import Collection, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -61,10 +61,12 @@ reported as a finding: 0.1 % of depth."""
 class RunReference:
     """What a run's ``depth.json`` says the scale fit needs: the depth map's median (m,
     the depth the back view pins the scale at) and the offset's share of depth error at
-    that depth (one sigma, a fraction)."""
+    that depth (one sigma, a fraction); ``offset_floor`` the least that share can be for
+    the run's rig and burst (:func:`offset_floor`; 0: not known)."""
 
     median_depth_m: float
     offset_fraction: float
+    offset_floor: float = 0.0
 
 
 def run_reference(session_path: Path) -> RunReference | None:
@@ -100,9 +102,23 @@ def laser_targets(rows: Sequence[Comparison], reference: RunReference, run: str,
         laser = math.hypot(accuracy_m, row.laser_spread_m / math.sqrt(max(row.laser_readings, 1)))
         name = f"{label}/{row.target}" if label else row.target
         targets.append(LaserTarget(name, row.laser_range_m, laser, e, own,
-                                   reference.median_depth_m, run, reference.offset_fraction,
+                                   reference.median_depth_m, run,
+                                   max(reference.offset_fraction, reference.offset_floor),
                                    (row.u, row.v), row.window_px))
     return targets
+
+
+def offset_floor(session: Session, median_depth_m: float) -> float:
+    """The least share of depth error (one sigma, a fraction, at ``median_depth_m``) the
+    disparity offset leaves for the session's rig and burst: the budget's model without
+    heat shimmer (:func:`rigkit.rig.bursts.expected_offset_error_px`). A run can state
+    less of its own offset than it has; what C_lb's tolerance counts of it is never less
+    than this."""
+    from rigkit.rig.bursts import expected_offset_error_px
+
+    profile = session.rig()
+    pixels = expected_offset_error_px(profile.image_size, session.burst_length, 0.0)
+    return pixels * median_depth_m / (profile.focal_px * profile.baseline_lr.value_m)
 
 
 # ------------------------------------------------------------ where the scale comes from
@@ -356,6 +372,8 @@ def read_run(path: Path) -> SessionRun:
     if any(row.run_id != run_id for row in rows):
         raise InputError(f"{session.path}: results/{LOG_NAME} is not the run of "
                          f"results/depth.json ({run_id}); process it again")
+    reference = replace(reference, offset_floor=offset_floor(session,
+                                                            reference.median_depth_m))
     return SessionRun(session, plain(session.name), frames_fingerprint(session), run_id,
                       reference, tuple(rows))
 
