@@ -619,7 +619,8 @@ def _miss(t: LaserTarget, targets: Sequence[LaserTarget], priors: dict[str, floa
 
 def _inseparable(suspects: list[str], w: float, targets: Sequence[LaserTarget],
                  rejected: Sequence[Rejected]) -> str:
-    words = [_PRIOR_WORDS.get(n, n) for n in suspects]
+    named = [n for n in suspects if not (n == PRIOR_CONSTANT and PRIOR_SCALE in suspects)]
+    words = [_PRIOR_WORDS.get(n, n) for n in named]
     count = len(targets)
     before = (f"{', '.join(r.target.name for r in rejected)} left out as blunders, then "
               if rejected else "")

@@ -191,9 +191,10 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
         verdict = text(app, "#verdict")
         assert "0/1 targets within" in verdict and "capture again" in verdict
         assert re.search(r"T1: 2\d\.\d\d %: outside 1 %, outside the 2σ", verdict)
-        # What one laser says of the scale, shown with the verdict and marked unchecked.
-        assert re.search(r"scale: lasers say C_lb = 1\.\d{3} \+- .* re-tape C_lb, or "
-                         r"calibrate .*\(from 1 target\(s\): unchecked\)", verdict, re.S)
+        # One laser 20 % off the tape: neither is fitted to the other; and the scale's source.
+        assert re.search(r"scale: lasers: T1 and the tape's C_lb disagree .* 1 target cannot "
+                         r"tell which is wrong", verdict, re.S)
+        assert "rig scale: taped (C_lb 2.000 +- 0.000 m, not laser-calibrated)" in verdict
         await pilot.press("b", "m", *"200", "enter", "n")  # one more reading: run again
         await wait_for(pilot, lambda: len(runs(session.path)) == 2, "the second run", 60)
         await wait_for(pilot, lambda: "targets within" in text(app, "#verdict"), "the verdict")
