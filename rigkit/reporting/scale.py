@@ -218,7 +218,7 @@ def session_scale_note(path: Path) -> str:
         return ""
     try:
         session = load_session(path)
-        rows = current_rows(session)
+        rows = current_rows(path)
     except InputError:
         return ""
     profile = session.rig()
@@ -227,18 +227,22 @@ def session_scale_note(path: Path) -> str:
     return f"{note}; scale {scale_source(profile)}" if note else f"scale {scale_source(profile)}"
 
 
-def current_rows(session: Session, torn: list[str] | None = None) -> list[Comparison]:
-    """The comparisons of the run in the session's ``results/`` (its own copy of them,
-    :data:`rigkit.capture.comparisons.LOG_NAME` in ``results/``), else, for a run from
-    before results/ held them, that run's rows in the log; [] where none."""
-    done = session.path / RESULTS_DIR / LOG_NAME
+def current_rows(folder: Path, torn: list[str] | None = None) -> list[Comparison]:
+    """The comparisons of the run in a session folder's ``results/``: its own copy of
+    them (:data:`rigkit.capture.comparisons.LOG_NAME` in ``results/``, there whether or
+    not an interrupted run's rows reached the log), else that run's rows in the log (a run
+    from before results/ held them), else the log's newest run (no readable results).
+    InputError where neither is readable; [] where none."""
+    done = folder / RESULTS_DIR / LOG_NAME
     if done.is_file():
         return read_rows(done, torn)
-    log = session.path / LOG_NAME
-    run = (run_metadata(session.path) or {}).get("run_id")
-    if not log.is_file() or not isinstance(run, str):
+    log = folder / LOG_NAME
+    if not log.is_file():
         return []
-    return [row for row in latest_run(read_rows(log, torn)) if row.run_id == run]
+    rows = read_rows(log, torn)
+    run = (run_metadata(folder) or {}).get("run_id")
+    mine = [row for row in rows if row.run_id == run]
+    return mine if mine else latest_run(rows)
 
 
 # ------------------------------------------------------------ the sessions calibrated
@@ -364,7 +368,7 @@ def read_run(path: Path) -> SessionRun:
             raise InputError(f"{session.path}: {stale} (rigkit process {session.path})")
         meta = run_metadata(session.path)
         reference = run_reference(session.path)
-        rows = current_rows(session)
+        rows = current_rows(session.path)
     run_id = (meta or {}).get("run_id")
     if reference is None or not rows or not isinstance(run_id, str):
         raise InputError(f"{session.path}: not processed with laser targets yet "

@@ -24,12 +24,13 @@ from rigkit.capture.comparisons import (
     STATUS_OK,
     Comparison,
     csv_text,
-    latest_run,
     read_rows,
 )
+from rigkit.capture.session import RESULTS_DIR
 from rigkit.core.files import write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
+from rigkit.reporting.scale import current_rows
 from rigkit.reporting.verdict import row_label
 
 #: Bucket edges by laser range, metres: <100, 100-200, ..., 400-500, >=500.
@@ -48,7 +49,9 @@ def collect(session_dirs: Iterable[Path], all_runs: bool = False,
     """The comparison rows of the given session folders, in the order given.
 
     Each folder must hold ``comparisons.csv`` at its top level. By default only each
-    session's newest run is kept; ``all_runs`` keeps every run. A folder given twice is
+    session's current run is kept, the one in its ``results/``
+    (:func:`rigkit.reporting.scale.current_rows`: not the log's greatest run id, which a
+    clock set back makes an old run's); ``all_runs`` keeps every run. A folder given twice is
     read once. InputError (naming the folder or file) for a missing folder, a folder
     without a log, or a file that is no log; damaged rows are skipped and said in
     ``torn`` (:func:`rigkit.capture.comparisons.read_rows`).
@@ -71,8 +74,10 @@ def _session_rows(folder: Path, all_runs: bool, torn: list[str] | None
         raise InputError(f"{folder}: no such session folder")
     if not folder.is_dir():
         raise InputError(f"{folder}: not a session folder (give the folder that holds {LOG_NAME})")
+    if not all_runs and (folder / RESULTS_DIR / LOG_NAME).is_file():
+        return current_rows(folder, torn)  # the run results/ holds, whatever the log's ids
     rows = read_rows(folder / LOG_NAME, torn)
-    return rows if all_runs else latest_run(rows)
+    return rows if all_runs else current_rows(folder, torn)
 
 
 # --------------------------------------------------------------------------- statistics

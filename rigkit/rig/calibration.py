@@ -555,8 +555,9 @@ def _minority(count: int, rejected: Sequence[Rejected]) -> None:
         return
     worst = max(rejected, key=lambda r: r.w)
     named = ", ".join(r.target.name for r in rejected)
+    verb = "disagrees" if len(rejected) == 1 else "disagree"
     raise InputError(
-        f"{named} disagree with the other targets and the profile beyond their sigmas (the "
+        f"{named} {verb} with the other targets and the profile beyond their sigmas (the "
         f"worst, {worst.target.name}, by {worst.miss_pct:+.1f} %, w = {worst.w:.1f}); with "
         f"{count} targets no more can be left out: check their readings (a laser on "
         "something nearer?), or hold them out (--hold-out)")

@@ -138,6 +138,9 @@ def test_the_fit_reads_the_results_run_not_the_logs_newest(
                              "error_pct": f"{100 * (estimate - laser) / laser:.9g}"})
     assert _calibrate(capsys, str(session), "--out", str(tmp_path / "b.yaml"))[0] == 0
     assert _fitted_c_lb(tmp_path / "b.yaml") == _fitted_c_lb(tmp_path / "a.yaml")
+    assert main(["report", str(session), "--out", str(tmp_path / "report")]) == 0
+    reported = (tmp_path / "report" / "comparisons.csv").read_text()
+    assert "20260101T000000Z-0001" in reported and "29990101T" not in reported
 
 
 def test_a_run_stopped_before_its_log_is_repaired_and_read(
