@@ -84,7 +84,7 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
         assert "✘" not in right and "parallax" in right
         await pilot.press("n")
         back = await take_position(pilot, app, "back")
-        assert "✘" not in back and "× → ~" in back and "at C_lb = 2.0 m" in back
+        assert "✘" not in back and "× → ~" in back and "at C_lb = 2.000 m" in back
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
