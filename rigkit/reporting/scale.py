@@ -173,6 +173,23 @@ def _same_pixel(a: tuple[float, float], b: tuple[float, float]) -> bool:
 # ------------------------------------------------------------------- the scale notes
 
 
+def calibration_rows(paths: Sequence[Path]) -> frozenset[tuple[str, str]]:
+    """(session name, target) of the targets that calibrated each session folder's rig
+    (:func:`calibration_targets`; none for a folder that is no readable session)."""
+    from rigkit.capture import is_session, load_session
+
+    keys: set[tuple[str, str]] = set()
+    for path in paths:
+        try:
+            session = load_session(path) if is_session(path) else None
+        except InputError:
+            session = None
+        if session is not None:
+            keys |= {(session.name, name) for name in calibration_targets(session.rig(),
+                                                                          session)}
+    return frozenset(keys)
+
+
 def scale_note(fit: ScaleFit, profile: RigProfile) -> str:
     """One line: the C_lb the lasers imply against the profile's, and what to do."""
     lb = profile.baseline_lb

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,7 +31,7 @@ from rigkit.core.files import write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
 from rigkit.reporting.scale import current_rows
-from rigkit.reporting.verdict import row_label
+from rigkit.reporting.verdict import CALIBRATED_LABEL, row_label
 
 #: Bucket edges by laser range, metres: <100, 100-200, ..., 400-500, >=500.
 DEFAULT_EDGES_M: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -207,8 +207,10 @@ def _several_runs(rows: Sequence[Comparison]) -> bool:
     return any(len(ids) > 1 for ids in runs.values())
 
 
-def format_rows(rows: Sequence[Comparison]) -> str:
-    """One line per comparison; a run column appears when a session has several runs."""
+def format_rows(rows: Sequence[Comparison], calibrated: Collection[tuple[str, str]] = ()
+                ) -> str:
+    """One line per comparison; a run column appears when a session has several runs;
+    the rows whose (session, target) ``calibrated`` the rig say so."""
     with_run = _several_runs(rows)
     header = ["session", *(["run"] if with_run else []), "target"]
     left = len(header)
@@ -216,6 +218,8 @@ def format_rows(rows: Sequence[Comparison]) -> str:
     lines = []
     for r in rows:
         status = row_label(r, TIGHT_PCT)
+        if (r.session, r.target) in calibrated:
+            status += f" ({CALIBRATED_LABEL})"
         lines.append(
             [
                 r.session,
@@ -294,15 +298,21 @@ def _outlier_lines(rows: Sequence[Comparison]) -> list[str]:
     ]
 
 
-def format_text(rows: Sequence[Comparison], summary: Summary) -> str:
-    """The full text report: every comparison, the summary, and the per-bucket table."""
+def format_text(rows: Sequence[Comparison], summary: Summary,
+                calibrated: Collection[tuple[str, str]] = ()) -> str:
+    """The full text report: every comparison, the summary, and the per-bucket table;
+    ``calibrated``: the (session, target) rows that calibrated their rig, marked and left
+    out of ``summary`` by the caller (they cannot check the scale they made)."""
     sessions = list(dict.fromkeys(r.session for r in rows))
+    used = [f"{r.session}/{r.target}" for r in rows if (r.session, r.target) in calibrated]
     parts = [
         f"rangefinder comparisons: {len(rows)} rows from {len(sessions)} session(s)"
         + (f" ({', '.join(sessions)})" if sessions else ""),
         "error = estimate - laser (positive: estimate too far); % of the laser range",
         "",
-        format_rows(rows),
+        format_rows(rows, calibrated),
+        *([f"calibrated the rig, so not counted below (they cannot check it): "
+           f"{', '.join(used)}"] if used else []),
         "",
         "summary",
         format_stats(summary.overall),

@@ -83,6 +83,10 @@ def test_calibrating_fixes_the_scale_and_the_targets_then_prove_nothing(
     shown = capsys.readouterr().out
     assert re.search(r"^  scale    laser-calibrated \d{4}-\d\d-\d\d from seed-3", shown, re.M)
     assert shown.count("(calibrated the rig: not a check)") == 5
+    assert main(["report", str(session), "--out", str(tmp_path / "report")]) == 0
+    reported = capsys.readouterr().out
+    assert reported.count("(calibrated the rig: not a check)") == 5
+    assert "summary\n0 comparisons: 0 ok" in reported  # none is an independent check
     code, _, err = _calibrate(capsys, str(session), "--out", str(tmp_path / "again.yaml"))
     assert code == 2 and "already calibrated its rig" in err
 
