@@ -93,6 +93,9 @@ _PRIORS = (PRIOR_SHAPE, PRIOR_SCALE, PRIOR_CONSTANT)
 _PRIOR_WORDS = {PRIOR_SHAPE: "the profile's f and C_lr (lens spec and tape)",
                 PRIOR_SCALE: "the tape's C_lb",
                 PRIOR_CONSTANT: "the laser's additive constant (a priori 0)"}
+MIN_CONSTANT_SIGMA_M = 0.01
+"""The least a-priori sigma of the laser's additive constant, m (readings stated exact
+still have one to a centimetre)."""
 CONSTANT_SEEN = 0.5
 """The laser's additive constant is determined by the targets (and written into the
 profile's rangefinder offset) where they bring its sigma below this share of its prior's."""
@@ -365,7 +368,7 @@ def fit_scale(targets: Sequence[LaserTarget], profile: RigProfile, *,
         raise InputError("no laser target with both a reading and a depth estimate: "
                          "nothing to calibrate the scale from")
     usable, duplicates = _merge_duplicates(usable)
-    laser = float(np.median([t.laser_sigma_m for t in usable]))
+    laser = max(float(np.median([t.laser_sigma_m for t in usable])), MIN_CONSTANT_SIGMA_M)
     priors = dict(zip(_PRIORS, (*_priors(profile), laser), strict=True))
     tolerances = dict(priors)
     kept, rejected, overruled = _snoop(usable, priors, tolerances, overrule, profile)
