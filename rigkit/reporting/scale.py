@@ -13,7 +13,7 @@ A calibration reads each session's current run, the one in its ``results/`` (und
 session's lock, after the repair every command makes: a run stopped between its results
 and its log is finished first), never the log's history: the rows of
 ``results/comparisons.csv`` and the reference of ``results/depth.json``
-(:func:`rigkit.capture.session.run_metadata`, the one place it is read here).
+(:func:`rigkit.capture.session.run_metadata`, read in one place here, ``_depth_json``).
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import os
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -69,10 +70,16 @@ class RunReference:
     offset_floor: float = 0.0
 
 
+def _depth_json(folder: Path) -> dict[str, Any] | None:
+    """The folder's ``results/depth.json`` (None where none is readable): the one place
+    this module reads it (:func:`rigkit.capture.session.run_metadata`)."""
+    return run_metadata(folder)
+
+
 def run_reference(session_path: Path) -> RunReference | None:
     """The latest run's reference (None where the session has no readable run)."""
     results = session_path / RESULTS_DIR
-    meta = run_metadata(session_path)
+    meta = _depth_json(session_path)
     if meta is None:
         return None
     median = meta.get("median_depth_m")
@@ -257,7 +264,7 @@ def current_rows(folder: Path, torn: list[str] | None = None) -> list[Comparison
     if not log.is_file():
         return []
     rows = read_rows(log, torn)
-    run = (run_metadata(folder) or {}).get("run_id")
+    run = (_depth_json(folder) or {}).get("run_id")
     mine = [row for row in rows if row.run_id == run]
     return mine if mine else latest_run(rows)
 
@@ -383,7 +390,7 @@ def read_run(path: Path) -> SessionRun:
         stale = stale_results(session)
         if stale:
             raise InputError(f"{session.path}: {stale} (rigkit process {session.path})")
-        meta = run_metadata(session.path)
+        meta = _depth_json(session.path)
         reference = run_reference(session.path)
         rows = current_rows(session.path)
     run_id = (meta or {}).get("run_id")
