@@ -17,7 +17,8 @@ from rigkit.capture import load_session
 from rigkit.cli import main
 from rigkit.errors import InputError
 from rigkit.export import export_path
-from rigkit.rangefinder.ranging import profile_range_from_depth
+from rigkit.export.source import open_depth
+from rigkit.rangefinder.ranging import range_on_ray
 from tests.export.helpers import SIZE, depth_plane, new_session, read_ply
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "capture" / "example"
@@ -72,8 +73,8 @@ def test_points_are_the_pixels_back_projected_as_the_laser_comparison_does(
     # The last grid point: pixel (399, 297), its range from the camera as the comparison has it.
     u, v = (SIZE[0] - 1) // 3 * 3, (SIZE[1] - 1) // 3 * 3
     last = ply[-1]
-    profile = load_session(session).rig()
-    expected = profile_range_from_depth(profile, SIZE, float(depth[v, u]), (u, v))
+    ray = open_depth(session).lens.rays(np.array([[u, v]], np.float64))[0]
+    expected = range_on_ray(float(depth[v, u]), (ray[0], ray[1], ray[2]))
     assert float(np.linalg.norm([last["x"], last["y"], last["z"]])) == pytest.approx(
         expected, rel=1e-6)
     assert last["x"] > 0 and last["y"] > 0  # right of and below the centre: x right, y down
