@@ -17,6 +17,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from rigkit.core.yamlfile import KeyPath
 from rigkit.errors import InputError
 
@@ -94,6 +96,21 @@ def check_position(lat_deg: float, lon_deg: float, height_m: float) -> None:
         if not (math.isfinite(value) and low <= value <= high):
             unit = "m" if name == "height" else "degrees"
             raise InputError(f"{name} {value:g}: expected {low:g} to {high:g} {unit}")
+
+
+def enu_direction(azimuth_deg: float, inclination_deg: float) -> np.ndarray:
+    """(east, north, up) unit vector (3,) of a line of sight ``azimuth_deg`` clockwise
+    from true north and ``inclination_deg`` above the horizontal."""
+    a, i = math.radians(azimuth_deg), math.radians(inclination_deg)
+    return np.array([math.cos(i) * math.sin(a), math.cos(i) * math.cos(a), math.sin(i)])
+
+
+def direction_angles(enu: np.ndarray) -> tuple[float, float]:
+    """(azimuth in [0, 360), inclination) in degrees of an (east, north, up) vector (3,)
+    of any length: the inverse of :func:`enu_direction`."""
+    east, north, up = (float(c) for c in enu)
+    return (math.degrees(math.atan2(east, north)) % 360.0,
+            math.degrees(math.atan2(up, math.hypot(east, north))))
 
 
 def check_direction(azimuth_deg: float | None, inclination_deg: float | None) -> None:

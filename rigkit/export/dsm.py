@@ -7,8 +7,9 @@ stays bounded whatever the map's size:
 1. :class:`Footprint` gathers the points' extent on the map and their spacing: for each
    point, the horizontal distance to its right and lower neighbours in the image (the
    larger of the two), as a histogram in log steps of 1 %. The cell size is the median
-   spacing rounded up to 1, 2, 2.5 or 5 times a power of ten (in the CRS's unit), so that
-   a cell holds about a point; coarser where the extent would need more than
+   spacing times sqrt(2) (a lattice of points that far apart, at any angle to the grid,
+   leaves no cell between them empty), rounded up to 1, 2, 2.5 or 5 times a power of ten
+   (in the CRS's unit); coarser where the extent would need more than
    :data:`MAX_CELLS` cells; or given (``--cell``). The grid is aligned to whole
    multiples of the cell.
 2. :class:`Gridder` sums each cell's points: a cell's elevation is their mean height.
@@ -141,9 +142,10 @@ class Footprint:
                     f"extent, more than {MAX_CELLS:,}; give --cell {coarsest.cell:g} or more")
             return grid, "given (--cell)"
         spacing = self.spacing()
-        grid = self._fitting(nice_cell(spacing))
-        how = f"the points' median spacing, {spacing:.3g}, rounded up"
-        if grid.cell > nice_cell(spacing):
+        wanted = nice_cell(spacing * math.sqrt(2))
+        grid = self._fitting(wanted)
+        how = f"the points' median spacing, {spacing:.3g}, times sqrt(2), rounded up"
+        if grid.cell > wanted:
             how += f", then coarsened to stay within {MAX_CELLS:,} cells"
         return grid, how
 
@@ -175,6 +177,7 @@ class Gridder:
         self._units = (unit_m, z_unit_m)
         self._count = np.zeros(grid.cells, np.int32)
         self._height = np.zeros(grid.cells, np.float64)
+        self._square = np.zeros(grid.cells, np.float64)
         self._sigma = np.zeros(grid.cells, np.float64)
 
     def add(self, chunk: PointChunk) -> None:
@@ -186,7 +189,9 @@ class Gridder:
         span = slice(low, high + 1)
         size = high - low + 1
         self._count[span] += np.bincount(local, minlength=size).astype(np.int32)
-        self._height[span] += np.bincount(local, chunk.xyz[:, 2], minlength=size)
+        height = chunk.xyz[:, 2] - self._origin[2]  # from the tripod: squares keep digits
+        self._height[span] += np.bincount(local, height, minlength=size)
+        self._square[span] += np.bincount(local, height * height, minlength=size)
         reach = chunk.sigma.astype(np.float64) * chunk.ray_length
         self._sigma[span] += np.bincount(local, reach, minlength=size)
 
@@ -195,37 +200,46 @@ class Gridder:
         shape = (self.grid.height, self.grid.width)
         count = self._count.reshape(shape)
         with np.errstate(invalid="ignore", divide="ignore"):
-            height = np.where(count > 0, self._height.reshape(shape) / count, np.nan)
+            mean = np.where(count > 0, self._height.reshape(shape) / count, np.nan)
+            spread = np.where(count > 0, self._square.reshape(shape) / count, np.nan) - mean**2
             sigma = np.where(count > 0, self._sigma.reshape(shape) / count, np.nan)
-        return height.astype(np.float32), (sigma * self._height_factor(height)).astype(
-            np.float32)
+        height = mean + self._origin[2]
+        depth_part = sigma * self._height_factor(height)
+        sigma = np.sqrt(depth_part**2 + np.maximum(spread, 0.0))
+        return height.astype(np.float32), sigma.astype(np.float32)
 
     def _height_factor(self, height: np.ndarray) -> np.ndarray:
-        """|l_Z - g_E l_E - g_N l_N| per cell (see the module), unitless."""
+        """|l_Z - g_E l_E - g_N l_N| per cell (see the module), unitless, the largest
+        over the one-sided slopes to the neighbouring cells: at an edge (a wall's foot,
+        a roof's rim) the two sides' slopes differ and the surface under a shifted point
+        may be either."""
         unit_m, z_unit_m = self._units
         east, north = self.grid.centres()
         e0, n0, z0 = self._origin
         line = np.stack(np.broadcast_arrays((east - e0) * unit_m, (north - n0) * unit_m,
                                             (height - z0) * z_unit_m))
         line /= np.linalg.norm(line, axis=0)
-        cell_m = self.grid.cell * unit_m
-        slope_east = _gradient(height, axis=1) * z_unit_m / cell_m
-        slope_north = -_gradient(height, axis=0) * z_unit_m / cell_m  # rows run south
-        return np.abs(line[2] - slope_east * line[0] - slope_north * line[1])
+        scale = z_unit_m / (self.grid.cell * unit_m)
+        factor = np.zeros(height.shape)
+        for slope_east in _slopes(height, axis=1):
+            for slope_north in _slopes(height, axis=0):  # rows run south: north is -rows
+                factor = np.fmax(factor, np.abs(line[2] - slope_east * scale * line[0]
+                                                + slope_north * scale * line[1]))
+        return factor
 
 
-def _gradient(values: np.ndarray, axis: int) -> np.ndarray:
-    """Per cell, the change of ``values`` per cell along ``axis``: the central
-    difference where both neighbours have values, else the one-sided one, else 0."""
+def _slopes(values: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell, the change of ``values`` per cell along ``axis`` to the next cell and
+    from the one before, each the other where one is missing, 0 where both are."""
     moved = np.moveaxis(values, axis, 0)
     ahead = np.full(moved.shape, np.nan)
     behind = np.full(moved.shape, np.nan)
     ahead[:-1] = moved[1:] - moved[:-1]
     behind[1:] = moved[1:] - moved[:-1]
-    with np.errstate(invalid="ignore"):
-        central = (ahead + behind) / 2
-    out = np.where(np.isfinite(central), central, np.where(np.isfinite(ahead), ahead, behind))
-    return np.moveaxis(np.nan_to_num(out, nan=0.0), 0, axis)
+    ahead, behind = np.where(np.isfinite(ahead), ahead, behind), np.where(
+        np.isfinite(behind), behind, ahead)
+    return tuple(np.moveaxis(np.nan_to_num(side, nan=0.0), 0, axis)  # type: ignore[return-value]
+                 for side in (ahead, behind))
 
 
 def write_dsm(path: Path, elevation: np.ndarray, sigma: np.ndarray, grid: Grid, crs: Any,

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from rigkit.capture.session import Session
-from rigkit.capture.tripod import TripodPosition
+from rigkit.capture.tripod import TripodPosition, enu_direction
 from rigkit.errors import InputError
 from rigkit.export.crs import VERTICAL_RECORDED, MapCrs, map_crs
 from rigkit.export.source import DepthMap
@@ -79,13 +79,6 @@ class Sighting:
     camera: np.ndarray
     enu: np.ndarray
     readings: int = 1
-
-
-def enu_direction(azimuth_deg: float, inclination_deg: float) -> np.ndarray:
-    """(east, north, up) unit vector of a line of sight ``azimuth_deg`` clockwise from
-    true north and ``inclination_deg`` above the horizontal."""
-    a, i = math.radians(azimuth_deg), math.radians(inclination_deg)
-    return np.array([math.cos(i) * math.sin(a), math.cos(i) * math.cos(a), math.sin(i)])
 
 
 def sightings(session: Session, source: DepthMap) -> list[Sighting]:

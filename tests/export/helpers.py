@@ -12,8 +12,7 @@ import numpy as np
 
 from rigkit.capture import LaserReading, add_target, create_session, load_session
 from rigkit.capture.positioning import set_tripod_position
-from rigkit.capture.tripod import TripodPosition
-from rigkit.export.georef import enu_direction
+from rigkit.capture.tripod import TripodPosition, enu_direction
 from tests.conftest import rig_file
 
 SIZE = (400, 300)

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 import tifffile
 
-from rigkit.capture import load_session
 from rigkit.cli import main
 from rigkit.errors import InputError
 from rigkit.export import export_path

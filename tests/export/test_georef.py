@@ -14,11 +14,12 @@ import pytest
 import yaml
 
 from rigkit.capture import load_session
+from rigkit.capture.tripod import enu_direction
 from rigkit.cli import main
 from rigkit.errors import InputError
 from rigkit.export import export_path
 from rigkit.export.crs import utm_epsg
-from rigkit.export.georef import enu_direction, wahba_rotation
+from rigkit.export.georef import wahba_rotation
 from rigkit.geometry import rotvec_to_matrix
 from tests.export.helpers import (
     TRIPOD,
