@@ -234,8 +234,10 @@ def _show_text(session: Any) -> str:
                  f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
     if session.tripod is not None:
         t = session.tripod
+        geoid = ("" if t.geoid_separation_m is None
+                 else f", geoid {t.geoid_separation_m:.2f} m above the ellipsoid")
         lines.append(f"  tripod   {t.lat_deg:.7f}, {t.lon_deg:.7f}, {t.height_m:.2f} m "
-                     f"({t.source})")
+                     f"({t.source}; height {t.height_datum}{geoid})")
     lines.append("frames")
     for position in POSITIONS:
         burst = session.bursts.get(position, ())

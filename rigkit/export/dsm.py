@@ -158,8 +158,9 @@ class Footprint:
         return grid
 
     def _aligned(self, cell: float) -> Grid:
-        west = math.floor(self.low[0] / cell) * cell
-        north = math.ceil(self.high[1] / cell) * cell
+        # Whole multiples of the cell, to the nanometre: 422242.3, not 422242.30000000005.
+        west = round(math.floor(self.low[0] / cell) * cell, 9)
+        north = round(math.ceil(self.high[1] / cell) * cell, 9)
         width = int(math.floor((self.high[0] - west) / cell)) + 1
         height = int(math.floor((north - self.low[1]) / cell)) + 1
         return Grid(west, north, cell, width, height)

@@ -113,7 +113,8 @@ def export_path(path: Path, out: Path, formats: Sequence[str] = DEFAULT_FORMATS,
     needs_map = request.asked() + (["--format dsm"] if "dsm" in formats else [])
     if georef is None and needs_map:
         why = note or "--frame camera"
-        raise InputError(f"{' and '.join(needs_map)} need the map, and {source.name} is not "
+        verb = "needs" if len(needs_map) == 1 else "need"
+        raise InputError(f"{' and '.join(needs_map)} {verb} the map, and {source.name} is not "
                          f"on it: {why}")
     return export_depth(source, out, formats, step=step, georef=georef, note=note,
                         cell=request.cell, progress=progress)

@@ -8,10 +8,8 @@ import shutil
 from pathlib import Path
 
 import cv2
-import laspy
 import numpy as np
 import pytest
-import tifffile
 
 from rigkit.cli import main
 from rigkit.errors import InputError
@@ -19,45 +17,6 @@ from rigkit.export import export_path
 from rigkit.export.source import open_depth
 from rigkit.rangefinder.ranging import range_on_ray
 from tests.export.helpers import SIZE, depth_plane, new_session, read_ply
-
-EXAMPLE = Path(__file__).resolve().parents[2] / "capture" / "example"
-
-
-@pytest.mark.slow
-def test_the_bundled_example_as_ply_las_laz_and_tif(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """The example processed in a copy, then exported: every format holds every estimated
-    pixel, and the points' median z is the depth map's."""
-    session = tmp_path / "example"
-    shutil.copytree(EXAMPLE, session)
-    assert main(["process", str(session), "--quiet"]) == 0
-    out = tmp_path / "cloud"
-    assert main(["export", str(session), "--out", str(out), "--format", "ply,las,laz,tif",
-                 "--quiet"]) == 0
-    depth = np.load(session / "results" / "depth.npy")
-    finite = depth[np.isfinite(depth)]
-    printed = capsys.readouterr().out
-    assert f"{finite.size} points, median z {np.median(finite):.2f} m" in printed
-    ply = read_ply(out / "example.ply")
-    assert len(ply) == finite.size
-    assert np.median(ply["z"]) == pytest.approx(np.median(finite), abs=1e-4)
-    for name in ("example.las", "example.laz"):
-        las = laspy.read(out / name)
-        assert las.header.point_count == finite.size and las.header.parse_crs() is None
-        assert np.median(las.z) == pytest.approx(np.median(finite), abs=1e-3)
-        assert np.allclose(las.x, ply["x"], atol=1e-3) and np.array_equal(las.red // 257,
-                                                                          ply["red"])
-        assert np.allclose(las.sigma, ply["sigma"])
-        # One return per pixel: LAS 1.4 readers refuse return number 0.
-        assert set(las.return_number) == {1} and set(las.number_of_returns) == {1}
-    with tifffile.TiffFile(out / "example.tif") as tif:
-        bands = tif.asarray()
-        meta = tif.shaped_metadata[0]
-    assert np.array_equal(bands[0], depth, equal_nan=True)
-    assert meta["bands"] == ["depth_m", "sigma_m"] and meta["rig"] == "synthetic-seed-7"
-    assert sorted(p.name for p in out.iterdir()) == [
-        "example.las", "example.laz", "example.ply", "example.tif"]
 
 
 def test_points_are_the_pixels_back_projected_as_the_laser_comparison_does(
