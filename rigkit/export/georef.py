@@ -113,28 +113,31 @@ def wahba_rotation(camera: np.ndarray, enu: np.ndarray) -> np.ndarray:
 
 def orientation_covariance(found: list[Sighting]) -> np.ndarray:
     """(3, 3) covariance, rad^2, of the fitted rotation's error as a small rotation
-    vector about ENU's axes (east, north, up): R_true = exp([d]x) R. Each target's line
-    of sight b is off by d x b plus its readings' error, azimuth (sigma
+    vector about ENU's axes (east, north, up): R_fit = exp([d]x) R_true. Each target's
+    line of sight b is off by its readings' error, in azimuth (sigma
     :data:`AZIMUTH_SIGMA_DEG` x cos(inclination)) and inclination
-    (:data:`INCLINATION_SIGMA_DEG`), each over sqrt(readings); the information is
-    sum [b]x^T W [b]x with W the inverse of that error's covariance across b (the
-    linearised least squares of Wahba's problem; the pixels' rays taken as exact)."""
-    info = np.zeros((3, 3))
+    (:data:`INCLINATION_SIGMA_DEG`), each over sqrt(readings): covariance C_i across b.
+    Linearised, Wahba's least squares (every target weighted alike, as
+    :func:`wahba_rotation` fits) gives d = J^-1 sum A_i^T e_i with A_i = [b_i]x^T and
+    J = sum A_i^T A_i, so cov(d) = J^-1 (sum A_i^T C_i A_i) J^-1 (the pixels' rays taken
+    as exact)."""
+    fit = np.zeros((3, 3))
+    spread = np.zeros((3, 3))
     for sight in found:
-        east, north, up = sight.enu
-        across = math.hypot(east, north)
+        east, north, _ = sight.enu
         azimuth = math.atan2(east, north)
         along_azimuth = np.array([math.cos(azimuth), -math.sin(azimuth), 0.0])
         along_inclination = np.cross(sight.enu, along_azimuth)
-        var_azimuth = (math.radians(AZIMUTH_SIGMA_DEG) * across) ** 2 + math.radians(
-            _AZIMUTH_FLOOR_DEG) ** 2
-        var_inclination = math.radians(INCLINATION_SIGMA_DEG) ** 2
-        weight = sight.readings * (np.outer(along_azimuth, along_azimuth) / var_azimuth
-                                   + np.outer(along_inclination, along_inclination)
-                                   / var_inclination)
-        cross = _skew(sight.enu)
-        info += cross.T @ weight @ cross
-    return np.linalg.inv(info)
+        var_azimuth = (math.radians(AZIMUTH_SIGMA_DEG) * math.hypot(east, north)) ** 2 + (
+            math.radians(_AZIMUTH_FLOOR_DEG) ** 2)
+        error = (var_azimuth * np.outer(along_azimuth, along_azimuth)
+                 + math.radians(INCLINATION_SIGMA_DEG) ** 2
+                 * np.outer(along_inclination, along_inclination)) / sight.readings
+        a = _skew(sight.enu).T
+        fit += a.T @ a
+        spread += a.T @ error @ a
+    inverse = np.linalg.inv(fit)
+    return inverse @ spread @ inverse
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
