@@ -48,6 +48,8 @@ MAX_CELLS = 8_000_000
 NODATA = -9999.0
 """The value of a cell without points, in both bands (and in the file's nodata tag)."""
 NICE_STEPS = (1.0, 2.0, 2.5, 5.0)
+BAND_ROWS = 256
+"""Rows of the grid whose elevation and sigma are computed at a time."""
 _LOG_BINS = np.arange(-6.0, 6.0 + 1e-9, 0.005)
 """Histogram edges of log10(spacing): 1.2 % steps from 1 um to 1000 km."""
 
@@ -197,33 +199,45 @@ class Gridder:
         self._sigma[span] += np.bincount(local, reach, minlength=size)
 
     def rasters(self) -> tuple[np.ndarray, np.ndarray]:
-        """(elevation, sigma), each (H, W) float32, NaN where no point fell."""
-        shape = (self.grid.height, self.grid.width)
-        count = self._count.reshape(shape)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.where(count > 0, self._height.reshape(shape) / count, np.nan)
-            spread = np.where(count > 0, self._square.reshape(shape) / count, np.nan) - mean**2
-            sigma = np.where(count > 0, self._sigma.reshape(shape) / count, np.nan)
-        height = mean + self._origin[2]
-        depth_part = sigma * self._height_factor(height)
-        sigma = np.sqrt(depth_part**2 + np.maximum(spread, 0.0))
-        return height.astype(np.float32), sigma.astype(np.float32)
+        """(elevation, sigma), each (H, W) float32, NaN where no point fell; computed in
+        bands of :data:`BAND_ROWS` rows (with a row of their neighbours above and below
+        for the slopes), so that the temporaries stay small whatever the grid's size."""
+        height, width = self.grid.height, self.grid.width
+        elevation = np.empty((height, width), np.float32)
+        sigma = np.empty((height, width), np.float32)
+        for top in range(0, height, BAND_ROWS):
+            bottom = min(top + BAND_ROWS, height)
+            low, high = max(top - 1, 0), min(bottom + 1, height)
+            cells = slice(low * width, high * width)
+            count, total, square, reach = (values[cells].reshape(high - low, width) for values
+                                           in (self._count, self._height, self._square,
+                                               self._sigma))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                mean = np.where(count > 0, total / count, np.nan)
+                spread = np.maximum(square / count - mean**2, 0.0)
+                along = reach / count * self._height_factor(mean, low)
+            band = slice(top - low, bottom - low)
+            elevation[top:bottom] = (mean + self._origin[2])[band]
+            sigma[top:bottom] = np.sqrt(along**2 + spread)[band]
+        return elevation, sigma
 
-    def _height_factor(self, height: np.ndarray) -> np.ndarray:
-        """|l_Z - g_E l_E - g_N l_N| per cell (see the module), unitless, the largest
-        over the one-sided slopes to the neighbouring cells: at an edge (a wall's foot,
-        a roof's rim) the two sides' slopes differ and the surface under a shifted point
-        may be either."""
+    def _height_factor(self, rise: np.ndarray, first_row: int) -> np.ndarray:
+        """|l_Z - g_E l_E - g_N l_N| per cell of the grid's rows from ``first_row`` on
+        (``rise``: their heights above the tripod), unitless (see the module), the
+        largest over the one-sided slopes to the neighbouring cells: at an edge (a wall's
+        foot, a roof's rim) the two sides' slopes differ and the surface under a shifted
+        point may be either."""
         unit_m, z_unit_m = self._units
         east, north = self.grid.centres()
-        e0, n0, z0 = self._origin
+        north = north[first_row:first_row + len(rise)]
+        e0, n0, _ = self._origin
         line = np.stack(np.broadcast_arrays((east - e0) * unit_m, (north - n0) * unit_m,
-                                            (height - z0) * z_unit_m))
+                                            rise * z_unit_m))
         line /= np.linalg.norm(line, axis=0)
         scale = z_unit_m / (self.grid.cell * unit_m)
-        factor = np.zeros(height.shape)
-        for slope_east in _slopes(height, axis=1):
-            for slope_north in _slopes(height, axis=0):  # rows run south: north is -rows
+        factor = np.zeros(rise.shape)
+        for slope_east in _slopes(rise, axis=1):
+            for slope_north in _slopes(rise, axis=0):  # rows run south: north is -rows
                 factor = np.fmax(factor, np.abs(line[2] - slope_east * scale * line[0]
                                                 + slope_north * scale * line[1]))
         return factor
@@ -239,8 +253,8 @@ def _slopes(values: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
     behind[1:] = moved[1:] - moved[:-1]
     ahead, behind = np.where(np.isfinite(ahead), ahead, behind), np.where(
         np.isfinite(behind), behind, ahead)
-    return tuple(np.moveaxis(np.nan_to_num(side, nan=0.0), 0, axis)  # type: ignore[return-value]
-                 for side in (ahead, behind))
+    return (np.moveaxis(np.nan_to_num(ahead, nan=0.0), 0, axis),
+            np.moveaxis(np.nan_to_num(behind, nan=0.0), 0, axis))
 
 
 def write_dsm(path: Path, elevation: np.ndarray, sigma: np.ndarray, grid: Grid, crs: Any,
