@@ -20,6 +20,7 @@ import pyproj
 import pytest
 import rasterio
 import tifffile
+from rasterio.errors import NotGeoreferencedWarning
 
 from rigkit.cli import main
 from rigkit.export.source import open_depth
@@ -71,7 +72,7 @@ def test_the_bundled_example_as_ply_las_laz_and_tif(
         page = tif.pages[0]
         assert page.compression == 8 and page.tags[42113].value == "nan"  # DEFLATE, nodata
         assert json.loads(page.description)["rig"] == "synthetic-seed-7"
-    with rasterio.open(out / "example.tif") as raster:
+    with pytest.warns(NotGeoreferencedWarning), rasterio.open(out / "example.tif") as raster:
         assert math.isnan(raster.nodata) and raster.crs is None and raster.count == 2
         assert np.array_equal(raster.read(1), depth, equal_nan=True)
     assert sorted(p.name for p in out.iterdir()) == [

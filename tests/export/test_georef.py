@@ -182,6 +182,8 @@ def test_the_orientations_covariance_matches_the_scatter_of_fits() -> None:
     """Directions off by the instruments' sigma (azimuth 1 deg, inclination 0.25 deg):
     the fitted rotations scatter as orientation_covariance says (each axis's variance
     within 20 % over 400 fits), and more readings per target shrink it as 1/n."""
+    from scipy.spatial.transform import Rotation
+
     from rigkit.capture.tripod import direction_angles
     from rigkit.export.georef import (
         AZIMUTH_SIGMA_DEG,
@@ -189,7 +191,6 @@ def test_the_orientations_covariance_matches_the_scatter_of_fits() -> None:
         Sighting,
         orientation_covariance,
     )
-    from scipy.spatial.transform import Rotation
 
     rng = np.random.default_rng(5)
     f = 4000.0
