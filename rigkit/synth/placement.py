@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -82,7 +83,47 @@ def target_point(truth: SceneTruth, pixel: tuple[float, float]) -> np.ndarray:
     if not math.isfinite(z):
         raise InputError(f"{truth.path}: no surface at pixel ({u:g}, {v:g}) to aim at")
     ray = left.rays(np.array([float(u)]), np.array([float(v)]))[0]
-    return ray * z - left.C
+    return ray * z  # the world frame is the left camera's
+
+
+def true_map_points(truth: SceneTruth, placement: Placement, pixels: np.ndarray, crs: Any
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The ray-traced points at left-image ``pixels`` ((n, 2) float, u, v) on the map
+    ``crs`` (a projected pyproj CRS): (n, 3) easting, northing and height as the
+    placement's tripod height is measured (above the ellipsoid, or a GPS's mean sea
+    level), NaN where the truth has no surface; and (n, 3) unit lines of sight from the
+    tripod, on the map (whose grid north is not true north). Computed apart from
+    ``rigkit export``'s georeferencing, as the truth to check it against: east-north-up
+    to geocentric by the WGS 84 formulas here, then PROJ to longitude, latitude and
+    height and on to ``crs``."""
+    import pyproj
+
+    left = truth.cameras["left"]
+    u, v = pixels[:, 0], pixels[:, 1]
+    z = truth.depth("left")[np.rint(v).astype(int), np.rint(u).astype(int)].astype(np.float64)
+    enu = (left.rays(u, v) * z[:, None]) @ placement.rotation().T  # world = left camera
+    separation = placement.geoid_separation_m or 0.0
+    lat, lon = math.radians(placement.lat_deg), math.radians(placement.lon_deg)
+    h0 = placement.height_m + separation  # the tripod's height above the ellipsoid
+    a, flattening = 6378137.0, 1 / 298.257223563  # WGS 84
+    e2 = flattening * (2 - flattening)
+    n = a / math.sqrt(1 - e2 * math.sin(lat) ** 2)
+    origin = np.array([(n + h0) * math.cos(lat) * math.cos(lon),
+                       (n + h0) * math.cos(lat) * math.sin(lon),
+                       (n * (1 - e2) + h0) * math.sin(lat)])
+    to_ecef = np.array([
+        [-math.sin(lon), -math.sin(lat) * math.cos(lon), math.cos(lat) * math.cos(lon)],
+        [math.cos(lon), -math.sin(lat) * math.sin(lon), math.cos(lat) * math.sin(lon)],
+        [0.0, math.cos(lat), math.sin(lat)]])
+    ecef = origin + enu @ to_ecef.T
+    lons, lats, heights = pyproj.Transformer.from_crs(4978, 4979, always_xy=True).transform(
+        ecef[:, 0], ecef[:, 1], ecef[:, 2])
+    to_map = pyproj.Transformer.from_crs(4979, crs.to_3d(), always_xy=True)
+    east, north, _ = to_map.transform(lons, lats, heights)
+    points = np.column_stack([east, north, heights - separation])
+    e0, n0, _ = to_map.transform(placement.lon_deg, placement.lat_deg, h0)
+    line = points - np.array([e0, n0, placement.height_m])
+    return points, line / np.linalg.norm(line, axis=1, keepdims=True)
 
 
 def laser_direction(point: np.ndarray, placement: Placement,

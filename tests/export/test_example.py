@@ -2,8 +2,9 @@
 map against its rendered truth. The example is a distorting scene (k1 0.47) placed at
 46.55 N 7.98 E, its camera looking down on its slope (rigkit.synth.placement): the LAS
 points and the DSM's cells must lie where the truth is, within their stated sigma, in
-the tripod's UTM zone and in Swiss LV95; the truth is placed by this file's own
-arithmetic (numpy to geocentric, PROJ to the grid), not by rigkit's georeferencing."""
+the tripod's UTM zone and in Swiss LV95; the truth is placed on the map apart from
+rigkit's georeferencing (rigkit.synth.placement.true_map_points: numpy to geocentric,
+PROJ to the grid)."""
 
 from __future__ import annotations
 
@@ -26,11 +27,13 @@ from rigkit.cli import main
 from rigkit.export.source import open_depth
 from rigkit.rangefinder.ranging import range_on_ray
 from rigkit.synth import load_scene
+from rigkit.synth.placement import Placement
 from tests.export.helpers import read_ply
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "capture" / "example"
-PLACED = {"azimuth": 47.3, "elevation": -50.0, "roll": 0.0}
-"""How the example was placed (its laser directions say so; the fit must find it)."""
+PLACEMENT = Placement(46.55123, 7.98456, 1012.0, 47.3, -50.0, 0.0, 49.6)
+"""How the example was placed (rigkit.synth.placement.place_session: its tripod and
+laser directions say so; the fit must find its pointing)."""
 
 
 @pytest.fixture(scope="module")
@@ -86,60 +89,18 @@ def test_the_bundled_example_as_ply_las_laz_and_tif(
 def _truth_on_map(example: Path, crs: pyproj.CRS, step: int) -> tuple[np.ndarray, ...]:
     """For the exported grid's estimated pixels (row-major, as the points come): the
     true points on ``crs`` (E, N, height as recorded: the GPS's mean sea level), the
-    unit line of sight from the tripod, and the points' stated sigma along it."""
-    truth = load_scene(example)
-    left = truth.cameras["left"]
+    unit line of sight from the tripod on the map, the points' stated sigma along it,
+    and where the truth has a surface."""
+    from rigkit.synth.placement import true_map_points
+
     depth = np.load(example / "results" / "depth.npy")[::step, ::step]
     sigma = np.load(example / "results" / "sigma.npy")[::step, ::step]
     rows, cols = np.nonzero(np.isfinite(depth))
-    v, u = rows * step, cols * step
-    rays = left.rays(u.astype(float), v.astype(float))
-    z_true = truth.depth("left")[v, u].astype(np.float64)
-    tripod = load_session_tripod(example)
-    rotation = placed_rotation()
-    enu = (rays * z_true[:, None]) @ rotation.T
-    lat, lon = math.radians(tripod["lat"]), math.radians(tripod["lon"])
-    h0 = tripod["height"] + tripod["geoid"]  # the GPS: mean sea level + geoid separation
-    a, f = 6378137.0, 1 / 298.257223563
-    e2 = f * (2 - f)
-    n = a / math.sqrt(1 - e2 * math.sin(lat) ** 2)
-    origin = np.array([(n + h0) * math.cos(lat) * math.cos(lon),
-                       (n + h0) * math.cos(lat) * math.sin(lon),
-                       (n * (1 - e2) + h0) * math.sin(lat)])
-    to_ecef = np.array([
-        [-math.sin(lon), -math.sin(lat) * math.cos(lon), math.cos(lat) * math.cos(lon)],
-        [math.cos(lon), -math.sin(lat) * math.sin(lon), math.cos(lat) * math.sin(lon)],
-        [0.0, math.cos(lat), math.sin(lat)]])
-    ecef = origin + enu @ to_ecef.T
-    lons, lats, heights = pyproj.Transformer.from_crs(4978, 4979, always_xy=True).transform(
-        *ecef.T)
-    east, north, _ = pyproj.Transformer.from_crs(4979, crs.to_3d(), always_xy=True).transform(
-        lons, lats, heights)
-    points = np.column_stack([east, north, heights - tripod["geoid"]])
-    # The line of sight on the map (its grid north is not true north: UTM's convergence
-    # here is 0.74 degree), from where the tripod lies on it.
-    e0, n0, _ = pyproj.Transformer.from_crs(4979, crs.to_3d(), always_xy=True).transform(
-        tripod["lon"], tripod["lat"], h0)
-    line = points - np.array([e0, n0, tripod["height"]])
-    line /= np.linalg.norm(line, axis=1, keepdims=True)
+    pixels = np.column_stack([cols * step, rows * step]).astype(np.float64)
+    points, line = true_map_points(load_scene(example), PLACEMENT, pixels, crs)
+    rays = load_scene(example).cameras["left"].rays(pixels[:, 0], pixels[:, 1])
     stated = sigma[rows, cols] * np.linalg.norm(rays, axis=1)
-    return points, line, stated, np.isfinite(z_true)
-
-
-def load_session_tripod(example: Path) -> dict[str, float]:
-    from rigkit.capture import load_session
-
-    t = load_session(example).tripod
-    assert t is not None and t.height_datum == "gps" and t.geoid_separation_m is not None
-    return {"lat": t.lat_deg, "lon": t.lon_deg, "height": t.height_m,
-            "geoid": t.geoid_separation_m}
-
-
-def placed_rotation() -> np.ndarray:
-    from rigkit.synth.placement import Placement
-
-    return Placement(0.0, 0.0, 0.0, PLACED["azimuth"], PLACED["elevation"],
-                     PLACED["roll"]).rotation()
+    return points, line, stated, np.isfinite(points[:, 2])
 
 
 def _within(ratio: np.ndarray) -> tuple[float, float, float]:
@@ -225,4 +186,4 @@ def test_the_laser_comparison_and_export_back_project_through_the_same_lens(
     assert looks is not None
     # To the principal point the rig does not know (+-5 px: 0.02 degree).
     assert [float(x) for x in looks.groups()] == pytest.approx(
-        [PLACED["azimuth"], PLACED["elevation"], PLACED["roll"]], abs=0.05)
+        [PLACEMENT.azimuth_deg, PLACEMENT.elevation_deg, PLACEMENT.roll_deg], abs=0.05)
