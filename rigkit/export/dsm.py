@@ -126,7 +126,7 @@ class Footprint:
         total = int(self._spacing.sum())
         if total == 0:
             raise InputError("the DSM needs points with neighbours: every estimated pixel "
-                             "stands alone (export a denser --step)")
+                             "stands alone (export with a smaller --step)")
         index = int(np.searchsorted(np.cumsum(self._spacing), (total + 1) // 2))
         return float(10.0 ** _LOG_BINS[index + 1])
 
