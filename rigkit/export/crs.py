@@ -277,7 +277,9 @@ def _transformer(target: Any, position: TripodPosition) -> tuple[Any, tuple[str,
     lacks."""
     import pyproj
 
-    group = _group(pyproj.CRS.from_user_input(WGS84_3D), target, target.name, position)
+    outside = _area_notes(target, position)
+    group = _group(pyproj.CRS.from_user_input(WGS84_3D), target, target.name, position,
+                   f": {outside[0]}" if outside else "")
     best = group.transformers[0]
     better = [op for op in group.unavailable_operations
               if op.accuracy >= 0 and (best.accuracy < 0 or op.accuracy < best.accuracy)]
@@ -293,10 +295,11 @@ def _best(source: Any, target: Any, what: str) -> Any:
     return _group(source, target, what, None).transformers[0]
 
 
-def _group(source: Any, target: Any, what: str, position: TripodPosition | None) -> Any:
+def _group(source: Any, target: Any, what: str, position: TripodPosition | None,
+           why: str = "") -> Any:
     """PROJ's transformations from ``source`` to ``target`` (at ``position``), best
     first, ballpark ones (a datum ignored) left out; InputError naming the grid PROJ
-    needs when it can run none."""
+    needs when it can run none (``why``: what else to say)."""
     from pyproj.transformer import AreaOfInterest, TransformerGroup
 
     area = None if position is None else AreaOfInterest(
@@ -314,8 +317,8 @@ def _group(source: Any, target: Any, what: str, position: TripodPosition | None)
             f"PROJ needs the grid {missing[0].short_name} for {what} and does not have it: "
             f"projsync --file {missing[0].short_name} (or set PROJ_NETWORK=ON), or choose "
             "another --vertical")
-    raise InputError(f"PROJ knows no transformation from WGS 84 to {what} (only a "
-                     "ballpark one, which ignores the datum): choose another --crs")
+    raise InputError(f"PROJ knows no transformation from WGS 84 to {what} there, only a "
+                     f"ballpark one, which ignores the datum{why}; choose another --crs")
 
 
 def _accuracy(transformer: Any) -> float | None:
@@ -323,9 +326,9 @@ def _accuracy(transformer: Any) -> float | None:
     return accuracy if accuracy >= 0 else None
 
 
-def _area_notes(horizontal: Any, position: TripodPosition) -> tuple[str, ...]:
-    """A note when the tripod lies outside the CRS's area of use."""
-    area = horizontal.area_of_use
+def _area_notes(crs: Any, position: TripodPosition) -> tuple[str, ...]:
+    """A note when the tripod lies outside ``crs``'s area of use."""
+    area = crs.area_of_use
     if area is None:
         return ()
     lon, lat = position.lon_deg, position.lat_deg
@@ -334,5 +337,5 @@ def _area_notes(horizontal: Any, position: TripodPosition) -> tuple[str, ...]:
         else lon >= area.west or lon <= area.east)
     if inside:
         return ()
-    return (f"the tripod lies outside {horizontal.name}'s area of use ({area.name}): its "
-            "scale and convergence grow there",)
+    where = area.name.split(".")[0]
+    return (f"the tripod lies outside {crs.name}'s area of use ({where})",)

@@ -119,10 +119,10 @@ def true_map_points(truth: SceneTruth, placement: Placement, pixels: np.ndarray,
     lons, lats, heights = pyproj.Transformer.from_crs(4978, 4979, always_xy=True).transform(
         ecef[:, 0], ecef[:, 1], ecef[:, 2])
     to_map = pyproj.Transformer.from_crs(4979, crs.to_3d(), always_xy=True)
-    east, north, _ = to_map.transform(lons, lats, heights)
-    points = np.column_stack([east, north, heights - separation])
-    e0, n0, _ = to_map.transform(placement.lon_deg, placement.lat_deg, h0)
-    line = points - np.array([e0, n0, placement.height_m])
+    on_map = to_map.transform(lons, lats, heights)
+    points = np.column_stack([on_map[0], on_map[1], heights - separation])
+    tripod = to_map.transform(placement.lon_deg, placement.lat_deg, h0)
+    line = points - np.array([tripod[0], tripod[1], placement.height_m])
     return points, line / np.linalg.norm(line, axis=1, keepdims=True)
 
 
