@@ -282,3 +282,20 @@ def test_the_metadata_file_holds_the_fit_and_the_budget(tmp_path: Path) -> None:
     assert budget["transformation_m"]["value"] == 0.0  # WGS 84 / UTM: a conversion, exact
     assert meta["place"]["tripod"]["geoid_separation_m"] == 49.6
     assert meta["run"]["lens"]["source"].startswith("the rig profile's")
+
+
+def test_a_crs_for_elsewhere() -> None:
+    """A tripod in Bavaria: LV95 has no transformation PROJ will run there (refused,
+    saying the tripod lies outside its area of use); a neighbouring UTM zone does, with a
+    note."""
+    from rigkit.errors import InputError
+    from rigkit.export.crs import map_crs
+
+    munich = TripodPosition(48.14, 11.58, 520.0, "manual", "2026-04-12T08:00:00Z")
+    with pytest.raises(InputError, match=r"outside CH1903\+ / LV95's area of use "
+                                         r"\(Liechtenstein; Switzerland\); choose another"):
+        map_crs(munich, "EPSG:2056")
+    beside = map_crs(munich, "EPSG:32633")
+    assert beside.accuracy_m == 0.0 and len(beside.notes) == 1
+    assert beside.notes[0].startswith("the tripod lies outside WGS 84 / UTM zone 33N's area")
+    assert map_crs(munich).horizontal_code == "EPSG:32632" and not map_crs(munich).notes
