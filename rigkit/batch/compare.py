@@ -13,7 +13,8 @@ from rigkit.capture.comparisons import (
     Comparison,
 )
 from rigkit.capture.session import Session, Target, utc_now
-from rigkit.rangefinder.ranging import profile_range_from_depth
+from rigkit.pipeline.lens import Lens
+from rigkit.rangefinder.ranging import aperture_offset, range_on_ray
 
 NEIGHBOURHOOD_WINDOWS = 9
 """The side, in windows, of the neighbourhood whose window-sized medians measure how
@@ -71,6 +72,7 @@ def median_scatter(depth: np.ndarray, u: float, v: float, window_px: int) -> flo
 
 def compare_target(
     session: Session, target: Target, depth: np.ndarray, sigma: np.ndarray, run_id: str,
+    lens: Lens,
     offset: tuple[float, float] = (0.0, math.nan),
 ) -> Comparison:
     """The laser range of ``target`` against the depth map's range at its pixel.
@@ -78,8 +80,10 @@ def compare_target(
     ``depth``, ``sigma``: (H, W) float32, metres, z in the left camera. The estimate is
     the median z over the target's window, turned into the range along the centre
     pixel's ray from the laser's aperture (rig profile's rangefinder offset) by
-    :func:`rigkit.rangefinder.ranging.range_from_depth`. The laser range is the median
-    of the target's readings, so one typo among good shots does not move it.
+    :func:`rigkit.rangefinder.ranging.range_on_ray`, the ray back-projected through
+    ``lens``, the run's (:func:`rigkit.export.runinfo.run_info`, as ``rigkit export``
+    back-projects every point). The laser range is the median of the target's
+    readings, so one typo among good shots does not move it.
 
     The estimate's one-sigma is its own, measured (:func:`median_scatter`; no better
     than the per-pixel sigma over the square root of the window's pixels; the per-pixel
@@ -102,7 +106,8 @@ def compare_target(
     if finite.any():
         z = float(np.median(window[finite]))
         z_sigma = float(np.median(window_sigma[finite]))
-        estimate = profile_range_from_depth(profile, (width, height), z, (u, v))
+        ray = lens.rays(np.array([[u, v]], np.float64))[0]
+        estimate = range_on_ray(z, (ray[0], ray[1], ray[2]), aperture_offset(profile))
         sigma_range = _estimate_sigma(depth, target, z_sigma / z, int(finite.sum()),
                                       offset, z) * estimate
     status = STATUS_OK if finite.any() and laser.size else (

@@ -240,8 +240,10 @@ def _show_text(session: Any) -> str:
     lines.append(f"  scale    {scale_source(rig)}")
     if session.tripod is not None:
         t = session.tripod
+        geoid = ("" if t.geoid_separation_m is None
+                 else f", geoid {t.geoid_separation_m:.2f} m above the ellipsoid")
         lines.append(f"  tripod   {t.lat_deg:.7f}, {t.lon_deg:.7f}, {t.height_m:.2f} m "
-                     f"({t.source})")
+                     f"({t.source}; height {t.height_datum}{geoid})")
     lines.append("frames")
     for position in POSITIONS:
         burst = session.bursts.get(position, ())

@@ -22,6 +22,7 @@ from rigkit.capture.comparisons import LOG_NAME, SIGNIFICANT_DIGITS, latest_run,
 from rigkit.cli import main
 from rigkit.core.files import recover_folder
 from rigkit.errors import InputError
+from rigkit.pipeline.lens import Lens
 from tests.conftest import copy_session
 
 
@@ -187,7 +188,8 @@ def test_range_from_depth_on_a_plane(synth_session: Path) -> None:
     depth = np.full((720, 960), 300.0, np.float32)
     sigma = np.full((720, 960), 1.5, np.float32)
     target = Target("A", (900.0, 40.0), 9, session.targets[0].readings)
-    row = compare_target(session, target, depth, sigma, "run")
+    lens = Lens(f, (960, 720))
+    row = compare_target(session, target, depth, sigma, "run", lens)
     x, y = (900.0 - 479.5) / f, (40.0 - 359.5) / f
     expected = 300.0 * math.sqrt(1 + x * x + y * y)
     assert row.estimate_range_m == pytest.approx(expected, rel=1e-9)
@@ -195,10 +197,18 @@ def test_range_from_depth_on_a_plane(synth_session: Path) -> None:
     # the window's pixels (the least it could be), with the offset's share added.
     own = 1.2533 * 1.5 / 9
     assert row.estimate_sigma_m == pytest.approx(own * expected / 300.0)
-    row = compare_target(session, target, depth, sigma, "run", (0.004, 300.0))
-    assert row.estimate_sigma_m == pytest.approx(math.hypot(own, 1.2) * expected / 300.0)
+    offset_row = compare_target(session, target, depth, sigma, "run", lens, (0.004, 300.0))
+    assert offset_row.estimate_sigma_m == pytest.approx(
+        math.hypot(own, 1.2) * expected / 300.0)
+    # Through a bent lens: the recorded pixel's ray is the undistorted one.
+    bent = Lens(f, (960, 720), (40.0, 0.0, 0.0, 0.0, 0.0))
+    row = compare_target(session, target, depth, sigma, "run", bent)
+    x, y = (bent.to_ideal(np.array([[900.0, 40.0]]))[0] - [479.5, 359.5]) / f
+    assert row.estimate_range_m == pytest.approx(300.0 * math.sqrt(1 + x * x + y * y),
+                                                 rel=1e-12)
+    assert row.estimate_range_m < expected - 1e-3  # the lens pushed the corner outwards
     depth[:, :] = np.nan
-    row = compare_target(session, target, depth, sigma, "run")
+    row = compare_target(session, target, depth, sigma, "run", Lens(f, (960, 720)))
     assert row.status == "no_estimate" and math.isnan(row.error_pct)
 
 

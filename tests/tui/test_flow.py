@@ -100,7 +100,8 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
                        "the export", 30)
         await pilot.press("q")
     assert sorted(p.name for p in (demo.session / "export").iterdir()) == [
-        f"{demo.session.name}.las", f"{demo.session.name}.ply"]
+        f"{demo.session.name}.export.json", f"{demo.session.name}.las",
+        f"{demo.session.name}.ply"]
     session = load_session(demo.session)
     assert taken(session) == ["left", "right", "back"]
     assert [len(t.readings) for t in session.targets] == [3, 3]
