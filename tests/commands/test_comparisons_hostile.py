@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from rigkit.capture.comparisons import LOG_LIMIT, LOG_NAME, append_rows, latest_run, read_rows
+from rigkit.capture.comparisons import LOG_LIMIT, LOG_NAME, append_rows, csv_text, read_rows
 from rigkit.cli import main
 from tests.conftest import copy_session
 
@@ -30,30 +30,37 @@ def _one_line(capsys: pytest.CaptureFixture[str]) -> str:
 def test_a_log_larger_than_any_run_writes_is_not_read(
     session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: a 3 GB log was read whole: MemoryError in all three commands."""
-    with (session / LOG_NAME).open("r+b") as log:
-        log.truncate(3 << 30)  # sparse: no disk used
+    """Before: a 3 GB log was read whole: MemoryError in all three commands. The log and
+    the current run's copy in results/ (what a report and a calibration read) alike."""
+    for log in (session / LOG_NAME, session / "results" / LOG_NAME):
+        with log.open("r+b") as handle:
+            handle.truncate(3 << 30)  # sparse: no disk used
     limit = f"more than the {LOG_LIMIT >> 20} MB a comparisons log can be"
     assert main(["session", "show", str(session)]) == 0  # shown, with the warning
     captured = capsys.readouterr()
     assert f"{session / LOG_NAME}: 3 GB, {limit}" in captured.err
     assert len(captured.err.strip().splitlines()) == 1 and captured.out.startswith("session")
-    for command in (["report", str(session), "--out", str(tmp_path / "report")],
+    for command in (["report", str(session), "--out", str(tmp_path / "report"), "--all-runs"],
+                    ["report", str(session), "--out", str(tmp_path / "report")],
                     ["rig", "calibrate", str(session), "--out", str(tmp_path / "rig.yaml")]):
         assert main(command) == 2
-        assert f"{session / LOG_NAME}: 3 GB, {limit}" in _one_line(capsys)
+        err = _one_line(capsys)
+        assert LOG_NAME in err and f"3 GB, {limit}" in err
     assert not (tmp_path / "rig.yaml").exists() and not (tmp_path / "report").exists()
 
 
 def _hostile(session: Path, laser_m: float, estimate_m: float) -> None:
-    """Every row of the latest run given these ranges, its errors made to follow from
-    them (so only the ranges are wrong), appended as a newer run."""
-    rows = latest_run(read_rows(session / LOG_NAME))
+    """Every usable row of the current run given these ranges, its errors made to follow
+    from them (so only the ranges are wrong): in the run's own copy (``results/``, what
+    a calibration fits) and appended to the log as a newer run (what is shown)."""
+    current = session / "results" / LOG_NAME
+    rows = read_rows(current)
     error = estimate_m - laser_m
-    append_rows(session / LOG_NAME, [
-        replace(row, run_id="29990101T000000Z-0001", laser_range_m=laser_m,
-                estimate_range_m=estimate_m, error_m=error, error_pct=100 * error / laser_m)
-        for row in rows if row.ok])
+    bad = [replace(row, laser_range_m=laser_m, estimate_range_m=estimate_m, error_m=error,
+                   error_pct=100 * error / laser_m) if row.ok else row for row in rows]
+    current.write_text(csv_text(bad))
+    append_rows(session / LOG_NAME, [replace(row, run_id="29990101T000000Z-0001")
+                                     for row in bad])
 
 
 @pytest.mark.parametrize("laser_m, estimate_m", [(1e150, 1e150), (1e200, 300.0),
@@ -68,8 +75,7 @@ def test_ranges_beyond_any_rangefinder_fit_no_rig(
     out = tmp_path / "rig.yaml"
     assert main(["rig", "calibrate", str(session), "--out", str(out)]) == 2
     err = _one_line(capsys)
-    assert f"{session / LOG_NAME}: line " in err and "is no range" in err
-    assert "rigkit fits no rig" in err or "remove the line" in err
+    assert f"{LOG_NAME}" in err and "line 2 is no comparison" in err and "is no range" in err
     assert not out.exists()
     assert main(["session", "show", str(session)]) == 0
     assert "is damaged and was skipped" in capsys.readouterr().err

@@ -29,6 +29,7 @@ READ = {
     ("depth", "left"), ("depth", "right"), ("depth", "back"), ("depth", "rig"),
     ("synth", "rig"), ("eval", "scenes"), ("eval", "depth_dir"), ("rig", "check", "profile"),
     ("rig", "check", "capture"), ("rig", "calibrate", "sessions"),
+    ("rig", "calibrate", "check_session"),
     ("rangefinder", "read", "rig"), ("rangefinder", "log", "rig"),
     ("session", "add-frame", "session"), ("session", "add-frame", "file"),
     ("session", "new", "rig"), ("session", "add-target", "session"),
