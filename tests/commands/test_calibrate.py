@@ -183,7 +183,7 @@ def test_out_is_checked_before_any_work_and_a_refusal_leaves_no_folder(
     folder = tmp_path / "rig.yaml"
     folder.mkdir()
     code, _, err = _calibrate(capsys, str(synth_session), "--out", str(folder), "--force")
-    assert code == 2 and f"--out {folder}: {folder} is a folder" in err  # not "not processed"
+    assert code == 2 and f"--out: {folder} is a folder" in err  # not "not processed"
     nested = tmp_path / "new" / "sub" / "rig.yaml"
     code, _, err = _calibrate(capsys, str(synth_session), "--out", str(nested))
     assert code == 2 and "not processed with laser targets yet" in err

@@ -122,8 +122,9 @@ def test_a_failure_leaves_no_partial_output(
     monkeypatch.setattr("rigkit.export.las.LasWriter.write", full_disk)
     with pytest.raises(InputError, match="cannot write the export .No space left on device."):
         export_path(session, out, ["ply", "las"])
-    assert sorted(p.name for p in out.iterdir()) == [".rigkit-outputs", "geo.ply"]  # no .las,
-    assert (out / "geo.ply").read_bytes() == before  # no temporary folder
+    assert sorted(p.name for p in out.iterdir()) == [  # no .las, no temporary folder
+        ".rigkit-outputs", "geo.export.json", "geo.ply"]
+    assert (out / "geo.ply").read_bytes() == before
 
 
 @pytest.mark.parametrize(("setup", "message"), [
