@@ -25,8 +25,8 @@ from rigkit.experiments.loop_zhang import fundamental_ransac
 from rigkit.experiments.paper import PaperSettings, affine_rows_ransac, affine_warps
 from rigkit.experiments.sfm import colmap_poses
 from rigkit.geometry import Camera
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import load_scene
 
 VIEWS = ("left", "right", "back")

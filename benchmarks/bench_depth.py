@@ -28,8 +28,8 @@ from pathlib import Path
 
 def run_one(scene: Path, tune: bool) -> dict:
     from rigkit.core.memory import tune_for_images
+    from rigkit.imagefile.decode import load_grey
     from rigkit.pipeline import RigGeometry, estimate_depth
-    from rigkit.pipeline.images import load_grey
     from rigkit.synth import load_scene
 
     if tune:  # as the rigkit command does

@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
-from rigkit.pipeline.images import load_grey
 from rigkit.synth.evaluate import OCCLUSION_TOLERANCE, depth_metrics
 
 SCENE = Path("/work/shared/data/elephant")

@@ -36,10 +36,10 @@ import numpy as np
 
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.burst import stack_burst
 from rigkit.pipeline.distortion import corner_shift_px
-from rigkit.pipeline.images import load_grey
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene

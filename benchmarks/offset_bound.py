@@ -39,9 +39,9 @@ import numpy as np
 from rigkit.capture.frames import frame_files, load_capture
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import load_scene
 from rigkit.synth.bound import TRACKER_PX, offset_bound
 from rigkit.synth.evaluate import offset_error_px, visible_in_right

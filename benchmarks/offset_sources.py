@@ -33,10 +33,10 @@ import cv2
 import numpy as np
 
 from rigkit.errors import RigkitError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.ambiguity import remove_ambiguity
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import SceneTruth, load_scene
 from rigkit.synth.evaluate import offset_error_px
 from rigkit.synth.shimmer import displacement_field

@@ -19,7 +19,7 @@ import numpy as np
 
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
-from rigkit.pipeline.images import load_grey
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.synth import load_scene
 

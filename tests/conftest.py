@@ -32,8 +32,8 @@ from rigkit.capture.comparisons import (
     Comparison,
     append_rows,
 )
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import DepthResult, RigGeometry, estimate_depth
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import SceneTruth, SynthParams, generate_scene, load_scene, write_scene
 
 SMALL = SynthParams(width=960, height=720)

@@ -18,11 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
-from rigkit.capture.exif import ExifInfo, read_exif
 from rigkit.capture.frames import FrameFile, capture_problems
-from rigkit.capture.imagesize import check_before_copy
 from rigkit.capture.lock import session_lock
-from rigkit.capture.rawio import is_raw, load_linear_grey
 from rigkit.capture.session import (
     DEFAULT_WINDOW_PX,
     DERIVED_DIR,
@@ -47,6 +44,9 @@ from rigkit.capture.session import (
 from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
 from rigkit.core.safefs import real_folder, require_file
 from rigkit.errors import InputError
+from rigkit.imagefile.exif import ExifInfo, read_exif
+from rigkit.imagefile.imagesize import check_before_copy
+from rigkit.imagefile.rawio import is_raw, load_linear_grey
 from rigkit.rangefinder.ranging import max_range_m
 from rigkit.rig.profile import load_rig, rig_to_dict
 

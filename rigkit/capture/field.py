@@ -42,7 +42,6 @@ import numpy as np
 
 from rigkit.capture.actions import add_frame
 from rigkit.capture.checks import UNCHECKED, check_exif
-from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
 from rigkit.capture.views import (
     ViewMap,
@@ -58,6 +57,7 @@ from rigkit.capture.views import (
 from rigkit.core.files import file_sha256
 from rigkit.core.threads import ViewPool
 from rigkit.errors import RigkitError
+from rigkit.imagefile.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.pipeline.checks import (
     MAX_RIGHT_SCALE_CHANGE,
     implied_range_m,
@@ -74,7 +74,7 @@ back position's magnification is 1 - C_lb / z, 0.007 at 300 m) is another positi
 MAX_ROLL_DEG = 10.0
 """Largest plausible roll between two positions; more means a camera turned on its side."""
 MAX_BLOWN = 0.01
-"""Largest share of clipped pixels (:data:`rigkit.capture.picture.CLIP_LEVEL`) before the
+"""Largest share of clipped pixels (:data:`rigkit.imagefile.picture.CLIP_LEVEL`) before the
 highlights count as blown and the frame should be taken again."""
 RANGE_FACTOR = 2.0
 """An implied range more than this factor from the profile's nominal range is suspect."""

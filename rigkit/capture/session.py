@@ -79,7 +79,7 @@ class Frame:
     ``file``: path relative to the session folder (under ``raw/``). ``sha256``: hex
     digest of its bytes at ingest. ``size_px``: (width, height) of the decoded image.
     ``source``: where it was copied from. ``exif``: the fields rigkit checks (units as
-    in :class:`rigkit.capture.exif.ExifInfo`; absent fields left out).
+    in :class:`rigkit.imagefile.exif.ExifInfo`; absent fields left out).
     """
 
     position: str

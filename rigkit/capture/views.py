@@ -18,10 +18,10 @@ from typing import TypeVar
 import cv2
 import numpy as np
 
-from rigkit.capture.picture import CLIP_LEVEL
-from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.capture.session import DERIVED_DIR, Frame, Session
 from rigkit.core.threads import ViewPool
+from rigkit.imagefile.picture import CLIP_LEVEL
+from rigkit.imagefile.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, Parallax, measure_parallax
 from rigkit.pipeline.features import Reference, match_to, prepare_left
 from rigkit.pipeline.rectify import pseudo_rectify
@@ -64,7 +64,7 @@ class ViewMap:
 
 def decoded(session: Session, frame: Frame) -> np.ndarray:
     """A frame decoded: (H, W) float32 grey in [0, 1] of full scale
-    (:func:`rigkit.capture.rawio.load_linear_grey`, RAW through the session's cache)."""
+    (:func:`rigkit.imagefile.rawio.load_linear_grey`, RAW through the session's cache)."""
     return load_linear_grey(session.path / frame.file, session.path / DERIVED_DIR, frame.sha256)
 
 

@@ -26,9 +26,9 @@ from rigkit.errors import RigkitError
 from rigkit.experiments.loop_zhang import loop_zhang_depth
 from rigkit.experiments.paper import paper_depth
 from rigkit.experiments.sfm import sfm_mvs_depth
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.features import Matches, match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.evaluate import Metrics, depth_metrics, failed_metrics, visible_in_right
 from rigkit.synth.io import SceneTruth

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 import tifffile
 
-from rigkit.capture.imagesize import header_size
-from rigkit.capture.rawio import decode_raw, frame_size, load_linear_grey
 from rigkit.errors import InputError
 from rigkit.export.source import file_depth
-from rigkit.pipeline.images import load_grey
+from rigkit.imagefile.decode import load_grey
+from rigkit.imagefile.imagesize import header_size
+from rigkit.imagefile.rawio import decode_raw, frame_size, load_linear_grey
 from tests.dngutil import bayer_from_grey, write_dng
 from tests.export.helpers import depth_plane
 
@@ -220,6 +220,6 @@ def test_opencv_itself_refuses_beyond_the_largest_frame() -> None:
     import os
 
     import rigkit  # noqa: F401  (sets it before cv2 is first imported)
-    from rigkit.capture.imagesize import MAX_FRAME_PIXELS
+    from rigkit.imagefile.imagesize import MAX_FRAME_PIXELS
 
     assert int(os.environ["OPENCV_IO_MAX_IMAGE_PIXELS"]) == MAX_FRAME_PIXELS
