@@ -28,7 +28,7 @@ import numpy as np
 
 from rigkit.capture.checks import capture_warnings
 from rigkit.capture.frames import FrameFile, load_capture
-from rigkit.capture.session import POSITIONS
+from rigkit.capture.model import POSITIONS
 from rigkit.core.lazy import preload
 from rigkit.pipeline import DepthResult, estimate_depth
 from rigkit.pipeline.shimmer import Shimmer

@@ -25,17 +25,9 @@ from rigkit.batch.compare import compare_target
 from rigkit.batch.depthrun import run_depth
 from rigkit.capture.actions import changing, frame_problems, session_frames
 from rigkit.capture.comparisons import LOG_NAME, Comparison, append_rows, csv_text
-from rigkit.capture.session import (
-    DERIVED_DIR,
-    HISTORY_FILE,
-    RESULTS_DIR,
-    Session,
-    load_session,
-    log_event,
-    run_metadata,
-    stray_readings,
-    utc_now,
-)
+from rigkit.capture.model import DERIVED_DIR, HISTORY_FILE, RESULTS_DIR, Session, stray_readings
+from rigkit.capture.results import run_metadata
+from rigkit.capture.session import load_session, log_event, utc_now
 from rigkit.core.files import Content, check_free_space, replace_folder
 from rigkit.core.safefs import check_regular
 from rigkit.errors import InputError

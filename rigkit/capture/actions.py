@@ -9,9 +9,8 @@ atomically and logged in ``history.log``.
 from __future__ import annotations
 
 import hashlib
-import math
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -20,8 +19,7 @@ from typing import Any
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.frames import FrameFile, capture_problems
 from rigkit.capture.lock import session_lock
-from rigkit.capture.session import (
-    DEFAULT_WINDOW_PX,
+from rigkit.capture.model import (
     DERIVED_DIR,
     EDIT_WAIT_S,
     POSITIONS,
@@ -30,14 +28,14 @@ from rigkit.capture.session import (
     SESSION_FILE,
     STAGING_DIR,
     Frame,
-    LaserReading,
     Session,
     Target,
+)
+from rigkit.capture.session import (
     check_name,
     is_session,
     load_session,
     log_event,
-    run_metadata,
     save_session,
     utc_now,
 )
@@ -47,7 +45,6 @@ from rigkit.errors import InputError
 from rigkit.imagefile.exif import ExifInfo, read_exif
 from rigkit.imagefile.imagesize import check_before_copy
 from rigkit.imagefile.rawio import is_raw, load_linear_grey
-from rigkit.rangefinder.ranging import max_range_m
 from rigkit.rig.profile import load_rig, rig_to_dict
 
 
@@ -229,43 +226,6 @@ def repair_session(path: Path) -> None:
                   "to the comparisons log after an interrupted run")
 
 
-def stale_results(session: Session, with_targets: bool = True) -> str | None:
-    """Why ``results/`` no longer shows this session (frames, rig or, ``with_targets``,
-    targets changed since the run that wrote it), or None. Without the targets: whether
-    its depth map is still this session's (the depth does not depend on them)."""
-    meta_path = session.path / RESULTS_DIR / "depth.json"
-    if not meta_path.is_file():
-        return None
-    meta = run_metadata(session.path)
-    if meta is None:  # damaged, a link or a FIFO
-        return "results/depth.json is unreadable; process again"
-    try:
-        recorded = {pos: [f.get("sha256") for f in meta["frames"][pos]] for pos in POSITIONS}
-    except (KeyError, TypeError, AttributeError):
-        return "results/depth.json is unreadable; process again"
-    current = {pos: [f.sha256 for f in session.bursts.get(pos, ())] for pos in POSITIONS}
-    run = meta.get("run_id", "?")
-    if recorded != current:
-        return f"results/ are from run {run}, before the frames changed; process again"
-    rig, used = session.rig().geometry(), meta.get("rig") or {}
-    now = {"focal_px": rig.focal_px, "baseline_lr_m": rig.baseline_lr_m,
-           "baseline_lb_m": rig.baseline_lb_m, "one_camera": rig.one_camera}
-    if any(used.get(key, value) != value for key, value in now.items()):
-        return f"results/ are from run {run}, before the rig changed; process again"
-    if not with_targets:
-        return None
-    done = session.path / RESULTS_DIR / LOG_NAME
-    try:
-        rows = read_rows(done) if done.is_file() else []
-    except InputError:
-        return f"results/{LOG_NAME} is unreadable; process again"
-    compared = {(r.target, r.u, r.v, r.laser_readings) for r in rows}
-    targets = {(t.name, t.pixel[0], t.pixel[1], len(t.readings)) for t in session.targets}
-    if compared != targets:
-        return f"results/ are from run {run}, before the targets changed; process again"
-    return None
-
-
 def session_frames(session: Session) -> dict[str, tuple[FrameFile, ...]]:
     """The session's frames as the depth run takes them (position -> its burst)."""
     return {pos: tuple(FrameFile(session.path / f.file, f.sha256, f.file) for f in burst)
@@ -341,92 +301,6 @@ def exif_fields(info: ExifInfo) -> dict[str, Any]:
     return {name: getattr(info, name) for name in keep if getattr(info, name) is not None}
 
 
-def add_target(
-    session: Session,
-    name: str,
-    pixel: tuple[float, float],
-    *,
-    window_px: int = DEFAULT_WINDOW_PX,
-    readings: Sequence[LaserReading] = (),
-    note: str = "",
-) -> Session:
-    """Add a target, or add readings to an existing one of the same name; returns the
-    session as saved.
-
-    The pixel must lie inside the rig's image and the window must be an
-    odd number of pixels. The change is made under the session's lock on the session as
-    it is on disk then (:func:`changing`), so readings added at once all land.
-    """
-    check_name(name, "target name")
-    if window_px < 1 or window_px % 2 == 0:
-        raise InputError(f"--window {window_px}: expected an odd number of pixels (e.g. 9)")
-    longest = max_range_m(session.rig())
-    for reading in readings:
-        if not (math.isfinite(reading.slope_distance_m) and
-                0 < reading.slope_distance_m <= longest):
-            raise InputError(f"range {reading.slope_distance_m:g} m: expected a distance "
-                             f"the rangefinder can measure (0-{longest:g} m)")
-    with changing(session.path, "add-target") as current:
-        return _add_target(current, name, pixel, window_px, readings, note)
-
-
-def _add_target(session: Session, name: str, pixel: tuple[float, float], window_px: int,
-                readings: Sequence[LaserReading], note: str) -> Session:
-    existing = {t.name: t for t in session.targets}
-    if name in existing:
-        old = existing[name]
-        if (tuple(pixel) != old.pixel) or window_px != old.window_px:
-            raise InputError(
-                f"{session.path}: target {name!r} is already at pixel "
-                f"({old.pixel[0]:g}, {old.pixel[1]:g}) window {old.window_px}; "
-                "give its pixel and window to add readings, or choose a new name"
-            )
-        target = replace(old, readings=old.readings + tuple(readings))
-        targets = tuple(target if t.name == name else t for t in session.targets)
-    else:
-        target = Target(name, (float(pixel[0]), float(pixel[1])), window_px, tuple(readings),
-                        note)
-        check_target_inside(session, target)
-        targets = session.targets + (target,)
-    updated = replace(session, targets=targets)
-    save_session(updated)
-    shots = ", ".join(f"{r.slope_distance_m:.2f} m ({r.source})" for r in readings) or "none"
-    log_event(
-        session.path, "add-target",
-        f"{name} pixel ({target.pixel[0]:g}, {target.pixel[1]:g}) window {window_px} "
-        f"readings {shots}",
-    )
-    return updated
-
-
-def remove_reading(session: Session, target_name: str, number: int) -> Session:
-    """Remove reading ``number`` (1-based, as ``session show`` lists them) of the target
-    ``target_name``; returns the session as saved."""
-    with changing(session.path, "remove") as current:
-        target = current.target(target_name)
-        if not 1 <= number <= len(target.readings):
-            raise InputError(f"{current.path}: target {target_name!r} has "
-                             f"{len(target.readings)} reading(s); there is no reading {number}")
-        gone = target.readings[number - 1]
-        kept = target.readings[: number - 1] + target.readings[number:]
-        updated = _with_target(current, replace(target, readings=kept))
-        save_session(updated)
-        log_event(current.path, "remove", f"{target_name} reading {number}: "
-                  f"{gone.slope_distance_m:.2f} m ({gone.source}, {gone.time_utc})")
-    return updated
-
-
-def remove_target(session: Session, target_name: str) -> Session:
-    """Remove the target ``target_name`` with its readings; returns the session."""
-    with changing(session.path, "remove") as current:
-        target = current.target(target_name)
-        updated = replace(current, targets=tuple(t for t in current.targets if t is not target))
-        save_session(updated)
-        log_event(current.path, "remove", f"target {target_name} at ({target.pixel[0]:g}, "
-                  f"{target.pixel[1]:g}) with {len(target.readings)} reading(s)")
-    return updated
-
-
 def remove_frame(session: Session, position: str, number: int | None = None) -> Session:
     """Remove frame ``number`` (1-based; default the newest) of ``position``'s burst from
     the session; its file stays in ``raw/``. Returns the session."""
@@ -443,11 +317,6 @@ def remove_frame(session: Session, position: str, number: int | None = None) -> 
         log_event(current.path, "remove", f"{position} frame {number}: {gone.file} (kept in "
                   f"{RAW_DIR}/)")
     return updated
-
-
-def _with_target(session: Session, target: Target) -> Session:
-    return replace(session, targets=tuple(target if t.name == target.name else t
-                                          for t in session.targets))
 
 
 def check_target_inside(session: Session, target: Target) -> None:

@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 
-from rigkit.capture.session import POSITIONS
+from rigkit.capture.model import POSITIONS
 from rigkit.errors import InputError
 from rigkit.imagefile.exif import ExifInfo, read_exif
 from rigkit.imagefile.rawio import frame_size

@@ -42,7 +42,7 @@ import numpy as np
 
 from rigkit.capture.actions import add_frame
 from rigkit.capture.checks import UNCHECKED, check_exif
-from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
+from rigkit.capture.model import DERIVED_DIR, POSITIONS, Frame, Session
 from rigkit.capture.views import (
     ViewMap,
     check_frame,

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigkit.capture.session import POSITIONS
+from rigkit.capture.model import POSITIONS
 from rigkit.core.files import file_sha256
 from rigkit.errors import InputError
 from rigkit.imagefile.imagesize import check_size

@@ -18,7 +18,7 @@ from typing import TypeVar
 import cv2
 import numpy as np
 
-from rigkit.capture.session import DERIVED_DIR, Frame, Session
+from rigkit.capture.model import DERIVED_DIR, Frame, Session
 from rigkit.core.threads import ViewPool
 from rigkit.imagefile.picture import CLIP_LEVEL
 from rigkit.imagefile.rawio import is_raw, load_linear_grey, to_pipeline

@@ -137,7 +137,7 @@ def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any],
 
 def run_remove_reading(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_reading
+    from rigkit.capture.targets import remove_reading
 
     session = remove_reading(load_session(args.session), args.target, args.reading)
     left = ", ".join(f"{r.slope_distance_m:.2f}" for r in session.target(args.target).readings)
@@ -147,7 +147,7 @@ def run_remove_reading(args: argparse.Namespace) -> int:
 
 def run_remove_target(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_target
+    from rigkit.capture.targets import remove_target
 
     remove_target(load_session(args.session), args.target)
     print(f"removed target {args.target}")
@@ -186,7 +186,7 @@ def run_show(args: argparse.Namespace) -> int:
 def _processed(session: Any, stale: str | None) -> str:
     """"processed (run ...)" where the results show the session as it is, else "ready
     to process" (what makes them stale is said below it)."""
-    from rigkit.capture.session import run_metadata
+    from rigkit.capture.results import run_metadata
 
     run = (run_metadata(session.path) or {}).get("run_id") if stale is None else None
     if run is None:
@@ -220,9 +220,9 @@ def _last_rows(session: Any) -> list[Any]:
 
 def _show_text(session: Any) -> str:
     from rigkit.capture import POSITIONS, frame_problems
-    from rigkit.capture.actions import stale_results
     from rigkit.capture.lock import lock_holder
-    from rigkit.capture.session import stray_readings
+    from rigkit.capture.model import stray_readings
+    from rigkit.capture.results import stale_results
 
     lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
     if session.operator:

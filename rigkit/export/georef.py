@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from rigkit.capture.session import Session
+from rigkit.capture.model import Session
 from rigkit.capture.tripod import TripodPosition
 from rigkit.errors import InputError
 from rigkit.export.points import camera_rays

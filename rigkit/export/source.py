@@ -16,8 +16,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from rigkit.capture.actions import stale_results
-from rigkit.capture.session import RESULTS_DIR, Session, is_session, load_session
+from rigkit.capture.model import RESULTS_DIR, Session
+from rigkit.capture.results import stale_results
+from rigkit.capture.session import is_session, load_session
 from rigkit.core.safefs import check_regular, real_folder
 from rigkit.errors import InputError
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from rigkit.capture import RESULTS_DIR, Session
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
-from rigkit.capture.session import run_metadata
+from rigkit.capture.results import run_metadata
 from rigkit.core.safefs import read_regular
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
@@ -166,7 +166,7 @@ def sessions_targets(paths: Sequence[Path], accuracy_m: float = LASER_ACCURACY_M
     where a session is not processed, its results are stale, or the sessions' rigs
     differ (each hand-taped session is calibrated alone)."""
     from rigkit.capture import load_session
-    from rigkit.capture.actions import stale_results
+    from rigkit.capture.results import stale_results
 
     profile: RigProfile | None = None
     first = ""

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
-from rigkit.capture.session import run_metadata
+from rigkit.capture.results import run_metadata
 from rigkit.rig.budget import ErrorModel, budget_row
 from rigkit.rig.profile import RigProfile
 

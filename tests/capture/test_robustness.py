@@ -23,9 +23,10 @@ from rigkit.capture import (
     frame_problems,
     load_session,
 )
-from rigkit.capture.actions import create_session_in, stale_results
+from rigkit.capture.actions import create_session_in
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.lock import session_lock
+from rigkit.capture.results import stale_results
 from rigkit.cli import main
 from rigkit.core import files
 from rigkit.errors import InputError

@@ -10,8 +10,9 @@ from pathlib import Path
 from rigkit.batch import new_run_id, process_session
 from rigkit.capture import LaserReading, Session, Target, create_session, load_session
 from rigkit.capture.field import add_position_frame, frames_at, resume_step
+from rigkit.capture.model import RESULTS_DIR
 from rigkit.capture.positioning import set_field_step
-from rigkit.capture.session import RESULTS_DIR, save_session
+from rigkit.capture.session import save_session
 from rigkit.synth.demo import Demo
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig

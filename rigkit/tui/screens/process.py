@@ -18,8 +18,8 @@ from textual.worker import get_current_worker
 from rigkit.batch import new_run_id, process_session
 from rigkit.batch.session import stray_warnings
 from rigkit.capture import RESULTS_DIR, frame_problems, read_rows
-from rigkit.capture.actions import stale_results
 from rigkit.capture.comparisons import Comparison, latest_run
+from rigkit.capture.results import stale_results
 from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
 from rigkit.reporting.scale import run_reference, run_scale_note
