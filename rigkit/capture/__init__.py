@@ -14,7 +14,8 @@ from rigkit.core.lazy import exports
 if TYPE_CHECKING:
     from rigkit.capture.actions import add_frame, create_session, file_sha256, frame_problems
     from rigkit.capture.comparisons import Comparison, latest_run, read_rows
-    from rigkit.capture.model import POSITIONS, RESULTS_DIR, Frame, LaserReading, Session, Target
+    from rigkit.capture.model import POSITIONS, Frame, LaserReading, Session, Target
+    from rigkit.capture.results import RESULTS_DIR
     from rigkit.capture.session import (
         is_session,
         load_session,
@@ -53,7 +54,7 @@ __getattr__ = exports(__name__, {
     "Frame": "model",
     "LaserReading": "model",
     "POSITIONS": "model",
-    "RESULTS_DIR": "model",
+    "RESULTS_DIR": "results",
     "Session": "model",
     "Target": "model",
     "add_frame": "actions",

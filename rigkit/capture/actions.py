@@ -24,13 +24,13 @@ from rigkit.capture.model import (
     EDIT_WAIT_S,
     POSITIONS,
     RAW_DIR,
-    RESULTS_DIR,
     SESSION_FILE,
     STAGING_DIR,
     Frame,
     Session,
     Target,
 )
+from rigkit.capture.results import RESULTS_DIR, session_comparisons
 from rigkit.capture.session import (
     check_name,
     is_session,
@@ -210,7 +210,7 @@ def repair_session(path: Path) -> None:
     ``results/comparisons.csv``)."""
     clean_staging(path)
     recover_folder(path, RESULTS_DIR)
-    done = path / RESULTS_DIR / LOG_NAME
+    done = session_comparisons(path)
     if not done.is_file():
         return
     try:

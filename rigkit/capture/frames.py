@@ -125,11 +125,13 @@ def load_capture(
     resolution: tuple[int, int] | None = None,
     cache_dir: Path | None = None,
     rig_name: str = "rig profile",
+    size_from: str | None = None,
 ) -> LoadedCapture:
     """Decode, check and stack a capture's frames (module docstring). ``resolution``
     (W, H) is the rig's image size (None: the frames only have to agree); ``cache_dir``
-    keeps decoded RAW frames by content hash. InputError names the first problem, in
-    the order of the positions and their frames.
+    keeps decoded RAW frames by content hash; ``size_from`` says whose size
+    ``resolution`` is in messages ("the left frame a.png is"; default the ``rig_name``'s).
+    InputError names the first problem, in the order of the positions and their frames.
 
     The next position's frames are decoded in worker threads while this one's are
     stacked (a 5-frame burst per position at 16 MP: 5.4 s -> about 3 s on two cores),
@@ -140,7 +142,7 @@ def load_capture(
     if problems:
         raise InputError("; ".join(problems))
     linear = is_raw(bursts["left"][0].path)
-    expected, whose = resolution, f"the {rig_name} is for"
+    expected, whose = resolution, size_from or f"the {rig_name} is for"
     greys, shimmer = [], None
     pool = ThreadPoolExecutor(max_workers=DECODERS, thread_name_prefix="rigkit-decode")
 

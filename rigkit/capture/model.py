@@ -22,7 +22,6 @@ FIELD_STEPS = ("rig", *POSITIONS, "targets", "process")
 FIELD_STEP_KEY = "field_step"
 RAW_DIR = "raw"
 DERIVED_DIR = "derived"
-RESULTS_DIR = "results"
 HISTORY_FILE = "history.log"
 STAGING_DIR = ".staging"
 LOCK_FILE = ".lock"

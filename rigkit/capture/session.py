@@ -129,7 +129,7 @@ def _session_from_data(data: Any, path: Path) -> Session:
     bursts = {pos: _burst(v, frames_key.child(pos), pos) for pos, v in frames_data.items()}
     targets_key = top_key.child("targets")
     targets = tuple(
-        _target(value, targets_key.item(i))
+        target_from_data(value, targets_key.item(i))
         for i, value in enumerate(targets_key.sequence(top["targets"]))
     )
     names = [t.name for t in targets]
@@ -217,7 +217,8 @@ def _frame(value: Any, key: KeyPath, position: str) -> Frame:
     )
 
 
-def _target(value: Any, key: KeyPath) -> Target:
+def target_from_data(value: Any, key: KeyPath) -> Target:
+    """A target as session.yaml (and a run's record) holds it; InputError naming ``key``."""
     keys = key.mapping(value, required=("name", "pixel"),
                        optional=("window_px", "readings", "note"))
     name = _text(keys["name"], key.child("name"))
@@ -275,7 +276,7 @@ def session_to_data(session: Session) -> dict[str, Any]:
     data["frames"] = {
         pos: _burst_to_data(session.bursts[pos]) for pos in POSITIONS if session.bursts.get(pos)
     }
-    data["targets"] = [_target_to_data(t) for t in session.targets]
+    data["targets"] = [target_to_data(t) for t in session.targets]
     if session.tripod is not None:
         data[TRIPOD_KEY] = tripod_to_data(session.tripod)
     if session.field_step is not None:
@@ -299,7 +300,7 @@ def _frame_to_data(frame: Frame) -> dict[str, Any]:
     }
 
 
-def _target_to_data(target: Target) -> dict[str, Any]:
+def target_to_data(target: Target) -> dict[str, Any]:
     data: dict[str, Any] = {
         "name": target.name,
         "pixel": [float(target.pixel[0]), float(target.pixel[1])],

@@ -186,9 +186,10 @@ def run_show(args: argparse.Namespace) -> int:
 def _processed(session: Any, stale: str | None) -> str:
     """"processed (run ...)" where the results show the session as it is, else "ready
     to process" (what makes them stale is said below it)."""
-    from rigkit.capture.results import run_metadata
+    from rigkit.capture.results import session_record
 
-    run = (run_metadata(session.path) or {}).get("run_id") if stale is None else None
+    record = session_record(session.path) if stale is None else None
+    run = record.run_id if record is not None else None
     if run is None:
         return "ready to process"
     return f"processed (run {run}); rigkit process again to redo it"

@@ -8,16 +8,14 @@ A session's ``results/`` holds ``depth.npy``, ``sigma.npy``, ``grey.png`` and
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 
-from rigkit.capture.model import RESULTS_DIR, Session
-from rigkit.capture.results import stale_results
+from rigkit.capture.model import Session
+from rigkit.capture.results import RunFiles, RunRecord, read_record, stale_results
 from rigkit.capture.session import is_session, load_session
 from rigkit.core.safefs import check_regular, real_folder
 from rigkit.errors import InputError
@@ -68,69 +66,55 @@ def open_depth(path: Path) -> DepthMap:
 
 def session_depth(path: Path) -> DepthMap:
     """The latest ``rigkit process`` results of the session at ``path``. Read without
-    the session's lock (results are swapped in whole); the run id is read before and
-    after, so a run swapped in meanwhile is noticed rather than mixed."""
+    the session's lock (results are swapped in whole); the run's record is read before
+    and after, so a run swapped in meanwhile is noticed rather than mixed. The depth map
+    is back-projected with the left camera the run used (its record's)."""
     if not is_session(path):
         raise InputError(f"{path}: not a session folder (no session.yaml)")
     session = load_session(path)
-    results = path / RESULTS_DIR
-    if not (results / "depth.npy").is_file():
+    files = RunFiles.of_session(path)
+    if not files.depth.is_file():
         raise InputError(f"{path}: no results yet; run `rigkit process {path}` first")
-    real_folder(results)  # the session's own: no link leads the export elsewhere
-    for name in ("depth.npy", "sigma.npy", "grey.png", "depth.json"):
-        check_regular(results / name)
+    real_folder(files.depth.parent)  # the session's own: no link leads the export elsewhere
+    for name in (files.depth, files.sigma, files.grey, files.record):
+        check_regular(name)
     stale = stale_results(session, with_targets=False)  # a depth map of other frames or rig
     if stale is not None:
         raise InputError(f"{path}: {stale} (rigkit process {path}) before exporting")
-    run_id = _meta(results / "depth.json").get("run_id")
-    arrays = _maps(results / "depth.npy", results / "sigma.npy", results / "grey.png",
-                   f"rigkit process {path}")
-    if _meta(results / "depth.json").get("run_id") != run_id:
+    record = read_record(files.record)
+    arrays = _maps(files, f"rigkit process {path}")
+    if read_record(files.record).run_id != record.run_id:
         raise InputError(f"{path}: results were replaced while being read (a run just "
                          "finished); export again")
-    rig = session.rig()
-    camera = rig.intrinsics((arrays[0].shape[1], arrays[0].shape[0]))
-    return DepthMap(*arrays, f=camera.focal_px, cx=camera.cx_px, cy=camera.cy_px,
-                    name=session.name, rig=rig.name,
-                    run_id=run_id, session=session)
+    return _depth_map(arrays, record, session.name, session)
 
 
 def file_depth(path: Path) -> DepthMap:
     """``rigkit depth``'s ``D.npy`` with ``D.sigma.npy``, ``D.grey.png`` and ``D.json``
-    beside it. The intrinsics are ``D.json``'s ``left_camera_px``; a ``D.json`` written
-    before rigkit recorded them gives its focal length and the image centre."""
-    stem = path.with_suffix("")
-    meta = _meta(stem.with_suffix(".json"))
-    arrays = _maps(path, Path(f"{stem}.sigma.npy"), Path(f"{stem}.grey.png"),
-                   "rigkit depth ... --out " + str(path))
+    beside it; the intrinsics are ``D.json``'s (the run's record)."""
+    files = RunFiles.beside(path)
+    record = read_record(files.record)
+    return _depth_map(_maps(files, f"rigkit depth ... --out {path}"), record,
+                      path.with_suffix("").name)
+
+
+def _depth_map(arrays: tuple[np.ndarray, np.ndarray, np.ndarray], record: RunRecord,
+               name: str, session: Session | None = None) -> DepthMap:
+    """The maps with the record's left camera; InputError where the maps are not of the
+    size the record says the run made."""
     height, width = arrays[0].shape
-    try:
-        camera = meta.get("left_camera_px") or {
-            "f": meta["rig"]["focal_px"], "cx": (width - 1) / 2, "cy": (height - 1) / 2}
-        f, cx, cy = (float(camera[k]) for k in ("f", "cx", "cy"))
-        rig = str(meta["rig"]["name"])
-    except (KeyError, TypeError, ValueError):
-        raise InputError(f"{stem}.json: no rig focal length (not written by rigkit depth?)"
-                         ) from None
-    return DepthMap(*arrays, f=f, cx=cx, cy=cy, name=stem.name, rig=rig)
+    if (width, height) != record.image_size_px:
+        raise InputError(f"{name}: the depth map is {width}x{height} px, its record says "
+                         f"{record.image_size_px[0]}x{record.image_size_px[1]} px")
+    f, cx, cy = record.left_camera_px
+    return DepthMap(*arrays, f=f, cx=cx, cy=cy, name=name, rig=record.rig_name,
+                    run_id=record.run_id, session=session)
 
 
-def _meta(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: missing (written with the depth map)") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read ({exc})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: not a depth map's metadata")
-    return data
-
-
-def _maps(depth_path: Path, sigma_path: Path, grey_path: Path,
-          remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _maps(files: RunFiles, remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Depth and sigma memory-mapped, grey read; all (H, W) and of one size."""
-    depth, sigma = (_npy(p) for p in (depth_path, sigma_path))
+    depth_path, grey_path = files.depth, files.grey
+    depth, sigma = (_npy(p) for p in (files.depth, files.sigma))
     if not grey_path.is_file():
         raise InputError(f"{grey_path}: missing (written since rigkit records the grey "
                          f"values for export); run `{remake}` again")

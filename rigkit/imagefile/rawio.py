@@ -33,7 +33,7 @@ from rigkit.core.files import write_png
 from rigkit.core.safefs import require_file
 from rigkit.errors import InputError
 from rigkit.imagefile.decode import check_decoder_output, decode_grey, read_image_file
-from rigkit.imagefile.imagesize import check_size, header_size
+from rigkit.imagefile.imagesize import HEAD_BYTES, check_size, header_size
 from rigkit.imagefile.picture import picture_problem
 
 if TYPE_CHECKING:
@@ -304,6 +304,24 @@ def frame_size(path: str | Path) -> tuple[int, int]:
             return int(raw.sizes.width), int(raw.sizes.height)
     except rawpy.LibRawError as exc:
         raise InputError(f"{path}: {_libraw_reason(exc)}") from None
+
+
+def declared_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) px of the frame at ``path`` as its header declares it, without
+    decoding pixels: LibRaw's output size for a RAW file (:func:`frame_size`), the PNG,
+    JPEG or TIFF header's in its first :data:`~rigkit.imagefile.imagesize.HEAD_BYTES`
+    for an ordinary image (decoded, as :func:`frame_size` does, where the header is not
+    there: a TIFF whose directory follows its pixels). InputError as for decoding."""
+    path = Path(path)
+    if is_raw(path):
+        return frame_size(path)
+    require_file(path)
+    with path.open("rb") as handle:
+        head = handle.read(HEAD_BYTES)
+    try:
+        return header_size(path, head)
+    except InputError:
+        return frame_size(path)
 
 
 def _scaled_to_255(frame: np.ndarray, overwrite: bool = False) -> np.ndarray:

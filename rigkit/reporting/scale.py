@@ -10,18 +10,14 @@ target of a run, and is what the fit measures.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
-from rigkit.capture import RESULTS_DIR, Session
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
-from rigkit.capture.results import run_metadata
-from rigkit.core.safefs import read_regular
+from rigkit.capture.model import Session
+from rigkit.capture.results import RunRecord, session_record
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
 from rigkit.rig.calibration import MIN_CHECKED, LaserTarget, ScaleFit, fit_scale
@@ -46,24 +42,19 @@ class RunReference:
     median_depth_m: float
     offset_fraction: float
 
+    @classmethod
+    def of(cls, record: RunRecord) -> RunReference:
+        """A run's reference from its record (NaN median without a depth; an unknown
+        offset share as 0)."""
+        median = record.median_depth_m
+        return cls(math.nan if median is None else median, record.offset_depth_fraction or 0.0)
+
 
 def run_reference(session_path: Path) -> RunReference | None:
-    """The latest run's reference (None where the session has no readable run)."""
-    results = session_path / RESULTS_DIR
-    meta = run_metadata(session_path)
-    if meta is None:
-        return None
-    median = meta.get("median_depth_m")
-    if not isinstance(median, int | float):  # a run before depth.json recorded it
-        try:
-            depth = np.load(io.BytesIO(read_regular(results / "depth.npy")))
-        except (OSError, ValueError, InputError):
-            return None
-        known = depth[np.isfinite(depth)]
-        median = float(np.median(known)) if known.size else math.nan
-    fraction = meta.get("offset_depth_error_fraction")
-    return RunReference(float(median), float(fraction) if isinstance(
-        fraction, int | float) else 0.0)
+    """The latest run's reference: None where the session has none; InputError where
+    its record is refused (:func:`rigkit.capture.results.read_record`)."""
+    record = session_record(session_path)
+    return None if record is None else RunReference.of(record)
 
 
 def laser_targets(rows: Sequence[Comparison], reference: RunReference, run: str,

@@ -15,10 +15,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
-from rigkit.capture.results import run_metadata
+from rigkit.capture.results import RunRecord
+from rigkit.reporting.scale import RunReference, run_scale_note
 from rigkit.rig.budget import ErrorModel, budget_row
 from rigkit.rig.profile import RigProfile
 
@@ -45,13 +45,15 @@ class Verdict:
     """The session's verdict: ``ok`` when every target is within the goal and no
     shortfall is reported; ``headline`` is one line ("6/6 targets within 1 %: done"),
     ``advice`` what to capture again (may be empty); ``scale`` what the targets say of
-    the rig's scale (:func:`rigkit.reporting.scale.run_scale_note`; "" where unknown)."""
+    the rig's scale (:func:`rigkit.reporting.scale.run_scale_note`; "" where unknown);
+    ``shortfalls`` what the run said makes it miss the goal."""
 
     ok: bool
     headline: str
     targets: tuple[TargetVerdict, ...]
     advice: tuple[str, ...]
     scale: str = ""
+    shortfalls: tuple[str, ...] = ()
 
 
 def row_label(row: Comparison, goal_pct: float = GOAL_PCT) -> str:
@@ -95,7 +97,8 @@ def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOA
     say of the rig's scale, shown with it."""
     if not rows:
         return Verdict(False, "no laser targets: nothing to check the depth against", (),
-                       ("mark at least one target and fire the laser at it",))
+                       ("mark at least one target and fire the laser at it",),
+                       shortfalls=tuple(shortfalls))
     targets = tuple(judge_target(row, profile, goal_pct, frames) for row in rows)
     passed = sum(t.ok for t in targets)
     done = passed == len(targets) and not shortfalls
@@ -103,7 +106,7 @@ def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOA
     if passed == len(targets) and shortfalls:
         verdict = "capture again: the run says it misses the goal (below)"
     headline = f"{passed}/{len(targets)} targets within {goal_pct:g} %: {verdict}"
-    return Verdict(done, headline, targets, _advice(rows, targets), scale)
+    return Verdict(done, headline, targets, _advice(rows, targets), scale, tuple(shortfalls))
 
 
 def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tuple[str, ...]:
@@ -122,8 +125,12 @@ def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tup
     return tuple(advice)
 
 
-def run_shortfalls(session_path: Path) -> tuple[str, ...]:
-    """What the session's latest run said makes it miss the goal (``shortfalls`` in
-    ``results/depth.json``); none without a readable run."""
-    found = (run_metadata(session_path) or {}).get("shortfalls")
-    return tuple(str(s) for s in found) if isinstance(found, list) else ()
+def run_verdict(rows: Sequence[Comparison], profile: RigProfile, record: RunRecord,
+                goal_pct: float = GOAL_PCT) -> Verdict:
+    """The verdict on a run (:func:`judge`) from its comparison rows and its record:
+    the frames it stacked, what it said falls short, what its targets say of the scale.
+    ``rigkit process`` returns it; the field TUI shows the one its run returned, or
+    this on reopening a session (the same function, the same words)."""
+    scale = run_scale_note(rows, profile, RunReference.of(record))
+    return judge(rows, profile, goal_pct, frames=record.burst_length,
+                 shortfalls=record.shortfalls, scale=scale)

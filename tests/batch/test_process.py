@@ -231,7 +231,7 @@ def test_a_session_with_bursts_and_a_lens_profile(tmp_path: Path) -> None:
     assert outcome.ok, outcome.message
     meta = json.loads((out / "results" / "depth.json").read_text())
     assert [len(meta["frames"][p]) for p in ("left", "right", "back")] == [3, 3, 3]
-    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"][0] == pytest.approx(k1)
+    assert meta["rig"]["distortion"][0] == pytest.approx(k1)
     # The shimmer measured between the left burst's first two frames (0.1 px rendered,
     # over 8 px: at 640 px the tracker's 21 px window averages some of it away).
     assert meta["shimmer"]["frames"] == "left frames 1 and 2"

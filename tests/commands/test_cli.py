@@ -127,7 +127,7 @@ def test_depth_takes_bursts_and_a_distortion(burst_dir, tmp_path, capsys):
     assert main(args) == 0
     meta = json.loads((tmp_path / "d.json").read_text())
     assert len(meta["frames"]["left"]) == 2 and meta["burst_length"] == 2
-    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"] == [0.0] * 5
+    assert meta["rig"]["distortion"] == [0.0] * 5
     assert meta["settings"]["min_texture"] == 3.0
     # Fitted from the views by default: the lens the depth used is the fitted one.
     assert meta["lens_fit"]["start_k1_k2_p1_p2_k3"] == [0.0] * 5
@@ -149,7 +149,7 @@ def test_depth_with_a_lensfun_profile_held_fixed(scene_dir, truth, tmp_path):
     meta = json.loads((tmp_path / "d.json").read_text())
     assert meta["lens_fit"] is None and meta["settings"]["distortion_terms"] == 0
     assert meta["distortion_k1_k2_p1_p2_k3"][0] > 0
-    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"] == meta["distortion_k1_k2_p1_p2_k3"]
+    assert meta["rig"]["distortion"] == meta["distortion_k1_k2_p1_p2_k3"]
 
 
 @pytest.mark.parametrize(

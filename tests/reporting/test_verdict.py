@@ -3,16 +3,14 @@ the same words everywhere."""
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
 
-from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING
-from rigkit.reporting.verdict import judge, row_label, run_shortfalls, two_sigma_pct
+from rigkit.reporting.verdict import judge, row_label, run_verdict, two_sigma_pct
 from rigkit.rig import load_rig
-from tests.conftest import make_row
+from tests.conftest import make_record, make_row
 
 ROOT = Path(__file__).resolve().parents[2]
 SYNTHETIC = load_rig(ROOT / "rigs" / "synthetic.yaml")  # 4608 px, exact: 2 sigma < 1 % at 300 m
@@ -97,11 +95,15 @@ def test_no_targets_is_not_done() -> None:
     assert not verdict.ok and "no laser targets" in verdict.headline
 
 
-def test_shortfalls_of_the_latest_run(tmp_path: Path) -> None:
-    assert run_shortfalls(tmp_path) == ()  # not processed yet
-    results = tmp_path / RESULTS_DIR
-    results.mkdir()
-    (results / "depth.json").write_text(json.dumps({"shortfalls": ["the offset ..."]}))
-    assert run_shortfalls(tmp_path) == ("the offset ...",)
-    (results / "depth.json").write_text("{not json")
-    assert run_shortfalls(tmp_path) == ()
+def test_a_runs_verdict_carries_what_its_record_says() -> None:
+    """The verdict on a run from its record: the frames it stacked (the offset's share
+    of the 2σ shrinks with them), what it said falls short (no "done" then)."""
+    rows = [make_row("T1", 300.0, 0.2), make_row("T2", 320.0, -0.3)]
+    done = run_verdict(rows, P1000, make_record())
+    assert done.ok and done.shortfalls == ()
+    short = run_verdict(rows, P1000, make_record(shortfalls=("the offset ...",)))
+    assert not short.ok and short.shortfalls == ("the offset ...",)
+    assert "the run says it misses the goal" in short.headline
+    far = [make_row("T1", 500.0, 5.0)]
+    burst = run_verdict(far, P1000, make_record(burst_length=5)).targets[0]
+    assert burst.two_sigma_pct == two_sigma_pct(P1000, far[0].estimate_range_m, frames=5)
