@@ -12,9 +12,11 @@ import hashlib
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.frames import FrameFile, capture_problems
@@ -105,38 +107,95 @@ def add_frame(
     origin: str | None = None,
 ) -> Session:
     """Copy ``source`` into ``raw/`` as a frame for ``position`` and record it; returns
-    the session as saved.
+    the session as saved (:func:`staged_frame`, then :func:`file_frame`)."""
+    with staged_frame(session, position, source, replace_existing=replace_existing,
+                      burst=burst) as staged:
+        return file_frame(staged, origin)
 
-    The file is copied byte for byte (never moved) into a staging folder outside
-    ``raw/``, hashed as it is copied, decoded and checked there: it must hold a picture,
-    have the rig's image size and that of the frames already taken, not be another
-    frame of the session, and be RAW if they are (or not if they are not). Only a frame
-    that passes is moved into ``raw/``; a refused one leaves nothing behind. Its EXIF is
-    recorded. A position that already has frames gets this one added to its burst with
-    ``burst``, or has them replaced by it with ``replace_existing`` (their files stay in
-    ``raw/``); otherwise it is refused. A file already in ``raw/`` (same name) is never
-    overwritten: identical content is reused, different content gets the position as a
-    prefix. ``origin`` is what session.yaml records as the frame's ``source``; by default
-    the file's absolute path (a file rigkit made itself says so instead, e.g.
-    ``rendered by rigkit synth, seed 7``, which does not depend on the machine).
 
-    The change is made under the session's lock on the session as it is on disk then
-    (:func:`rigkit.capture.lock.session_lock`), so concurrent changes all land.
-    """
+@dataclass(frozen=True)
+class StagedFrame:
+    """A frame on its way into a session (:func:`staged_frame`): ``session`` as it is on
+    disk under its lock; ``position``; ``source``, the file given; ``path``, its copy in
+    the staging folder; ``sha256``, the hash of the bytes copied (hex); ``grey``, the
+    copy decoded once, (H, W) float32 in [0, 1] of full scale
+    (:func:`rigkit.imagefile.rawio.load_linear_grey`; RAW: linear, kept in ``derived/``),
+    for every check of it (handed to the on-site checks, :func:`rigkit.capture.views.
+    admit`, which may scale it in place); ``raw``, whether it is camera RAW;
+    ``replace_existing`` and ``burst``, how it joins the position's frames."""
+
+    session: Session
+    position: str
+    source: Path
+    path: Path
+    sha256: str
+    grey: np.ndarray
+    raw: bool
+    replace_existing: bool = False
+    burst: bool = False
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(W, H) px."""
+        return self.grey.shape[1], self.grey.shape[0]
+
+
+@contextmanager
+def staged_frame(session: Session, position: str, source: str | Path, *,
+                 replace_existing: bool = False, burst: bool = False
+                 ) -> Iterator[StagedFrame]:
+    """``source`` staged for ``position``: copied, hashed and decoded once, and checked,
+    under the session's lock (:func:`changing`), for a :func:`file_frame` to record.
+
+    What is cheap to know is checked first (:func:`check_frame_file`). The file is then
+    copied byte for byte (never moved) into a staging folder outside ``raw/``, hashed as
+    it is copied, and checked there: a position that already has frames takes it only
+    as one more of its burst (``burst``), or as the frame that replaces them
+    (``replace_existing``; their files stay in ``raw/``); it must not be another frame
+    of the session, must be RAW if they are (or not if they are not), and, decoded,
+    must hold a picture of the rig's image size. A refused frame leaves nothing behind,
+    nor does one not filed before the block ends (the staged copy is removed then,
+    whatever happens)."""
     source = Path(source)
     check_frame_file(session, position, source)
-    with changing(session.path, "add-frame") as current:
-        with _staged(current.path, source) as (staged, sha256):
-            frame = _checked_frame(current, position, source, staged, sha256,
-                                   replace_existing, burst, origin)
-            stored = _store(current.path / RAW_DIR, staged, _text_name(source.name),
-                            position, sha256)
-        frame = replace(frame, file=f"{RAW_DIR}/{stored.name}")
-        before = () if replace_existing else current.bursts.get(position, ())
-        updated = replace(current, bursts={**current.bursts, position: (*before, frame)})
-        save_session(updated)
-        log_event(current.path, "add-frame",
-                  f"{position} {frame.file} sha256={frame.sha256} from {frame.source}")
+    with changing(session.path, "add-frame") as current, \
+            _staged(current.path, source) as (path, sha256):
+        _check_joins(current, position, source, path, sha256, replace_existing, burst)
+        rig = current.rig()  # every frame has its size, so all frames agree
+        try:
+            grey = load_linear_grey(path, current.path / DERIVED_DIR, sha256, rig.image_size,
+                                    f"the rig profile {rig.name} is for")
+        except InputError as exc:  # name the file the user gave, not the staged copy
+            raise InputError(str(exc).replace(str(path), str(source))) from None
+        yield StagedFrame(current, position, source, path, sha256, grey, is_raw(path),
+                          replace_existing, burst)
+
+
+def file_frame(staged: StagedFrame, origin: str | None = None) -> Session:
+    """Record ``staged`` in its session (inside :func:`staged_frame`'s block): linked into
+    ``raw/`` (a file already there of the same name is never overwritten: identical
+    content is reused, different content gets the position as a prefix), its EXIF read,
+    ``session.yaml`` saved and the change logged; returns the session as saved.
+    ``origin`` is what session.yaml records as the frame's ``source``; by default the
+    file's absolute path (a file rigkit made itself says so instead, e.g. ``rendered by
+    rigkit synth, seed 7``, which does not depend on the machine)."""
+    session, position, source = staged.session, staged.position, staged.source
+    stored = _store(session.path / RAW_DIR, staged.path, _text_name(source.name), position,
+                    staged.sha256)
+    frame = Frame(
+        position=position,
+        file=f"{RAW_DIR}/{stored.name}",
+        sha256=staged.sha256,
+        size_px=staged.size,
+        added_utc=utc_now(),
+        source=origin or _text_name(str(source.resolve())),
+        exif=exif_fields(read_exif(staged.path)),
+    )
+    before = () if staged.replace_existing else session.bursts.get(position, ())
+    updated = replace(session, bursts={**session.bursts, position: (*before, frame)})
+    save_session(updated)
+    log_event(session.path, "add-frame",
+              f"{position} {frame.file} sha256={frame.sha256} from {frame.source}")
     return updated
 
 
@@ -158,11 +217,12 @@ def _text_name(name: str) -> str:
     return os.fsencode(name).decode("utf-8", "replace").replace("\ufffd", "_")
 
 
-def _checked_frame(session: Session, position: str, source: Path, staged: Path,
-                   sha256: str, replace_existing: bool, burst: bool,
-                   origin: str | None) -> Frame:
-    """The Frame ``staged`` (a copy of ``source``) would be at ``position``, or
-    InputError naming ``source`` and what is wrong with it."""
+def _check_joins(session: Session, position: str, source: Path, staged: Path,
+                 sha256: str, replace_existing: bool, burst: bool) -> None:
+    """InputError naming ``source`` where ``staged`` (its copy, SHA-256 ``sha256``) cannot
+    join ``position``'s frames: it has some and neither ``burst`` nor
+    ``replace_existing`` says how, or the frames would not make a capture
+    (:func:`rigkit.capture.frames.capture_problems`: a frame twice, RAW mixed in)."""
     before = () if replace_existing else session.bursts.get(position, ())
     if before and not burst:
         raise InputError(
@@ -176,22 +236,8 @@ def _checked_frame(session: Session, position: str, source: Path, staged: Path,
     problems = capture_problems(bursts, complete=False)
     if problems:
         raise InputError("; ".join(problems))
-    rig = session.rig()  # every frame has its size, so all frames agree
-    try:
-        grey = load_linear_grey(staged, session.path / DERIVED_DIR, sha256, rig.image_size,
-                                f"the rig profile {rig.name} is for")
-    except InputError as exc:  # name the file the user gave, not the staged copy
-        raise InputError(str(exc).replace(str(staged), str(source))) from None
-    size = (grey.shape[1], grey.shape[0])
-    return Frame(
-        position=position,
-        file="",  # where it will be stored in raw/
-        sha256=sha256,
-        size_px=size,
-        added_utc=utc_now(),
-        source=origin or _text_name(str(source.resolve())),
-        exif=exif_fields(read_exif(staged)),
-    )
+
+
 @contextmanager
 def changing(path: Path, action: str, wait_s: float = EDIT_WAIT_S) -> Iterator[Session]:
     """The session at ``path`` as it is on disk, for a change made under its lock

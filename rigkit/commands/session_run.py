@@ -19,19 +19,16 @@ def run_new(args: argparse.Namespace) -> int:
 
 
 def run_add_frame(args: argparse.Namespace) -> int:
-    from rigkit.capture import add_frame, load_session
-    from rigkit.capture.actions import check_frame_file
-    from rigkit.capture.field import burst_misfit
+    from rigkit.capture import load_session
+    from rigkit.capture.field import ingest
     from rigkit.errors import InputError
 
-    session = load_session(args.session)
-    if args.burst:  # a frame of another view or scene is none of the burst (as in the TUI)
-        check_frame_file(session, args.position, args.file)  # what is refused at a glance
-        misfit = burst_misfit(session, args.position, args.file)
-        if misfit is not None:
-            raise InputError(f"{misfit}; add it at the position it shows")
-    session = add_frame(session, args.position, args.file,
-                        replace_existing=args.replace, burst=args.burst)
+    # A frame of another view or scene is none of the burst (as in the TUI).
+    done = ingest(load_session(args.session), args.position, args.file,
+                  replace_existing=args.replace, burst=args.burst, check_burst=args.burst)
+    if done.held is not None:
+        raise InputError(f"{done.held}; add it at the position it shows")
+    session = done.session
     burst = session.bursts[args.position]
     frame = burst[-1]
     width, height = frame.size_px
