@@ -1,8 +1,8 @@
 """The rig calibrated by its own laser (`rigkit rig calibrate`), on rendered sessions
 whose profile is wrong: depth bias against ground truth before and after.
 
-    python benchmarks/bench_calibrate.py --seeds 301-320 --work out/bench-calibrate
-    python benchmarks/bench_calibrate.py --seeds 301-303 --stray 10   # one reading 10 % off
+    python -m benchmarks.bench_calibrate --seeds 301-320 --work out/bench-calibrate
+    python -m benchmarks.bench_calibrate --seeds 301-303 --stray 10   # one reading 10 % off
 
 Each seed renders a scene at the paper's protocol (--width px across 6 deg, 300 m) as a
 session with --targets laser targets whose readings carry --laser-sigma-m of noise, and
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from eval_synthetic import seed_list  # this folder is on sys.path when run as a script
 
+from benchmarks.common import OUT, RIGS, seed_list
 from rigkit.batch import new_run_id, process_session
 from rigkit.capture import load_session
 from rigkit.capture.positioning import set_rig
@@ -49,7 +49,7 @@ TRUE_C_LB_M = 2.0
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", default="301-320")
-    parser.add_argument("--work", type=Path, default=Path("out/bench-calibrate"))
+    parser.add_argument("--work", type=Path, default=OUT / "bench-calibrate")
     parser.add_argument("--width", type=int, default=1152)
     parser.add_argument("--targets", type=int, default=6)
     parser.add_argument("--laser-sigma-m", type=float, default=0.3)
@@ -83,7 +83,7 @@ def _plan(laser_sigma_m: float, own: float = 0.002, z0: float = 300.0) -> None:
     """The one-sigma the fit leaves, for N targets spread evenly over +-spread of z0, each
     with the laser's sigma and an estimate good to ``own`` (0.2 %, what full-resolution
     targets show in the leave-one-out checks), under the P1000 profile's tolerances."""
-    profile = load_rig(Path(__file__).resolve().parents[1] / "rigs" / "p1000-tripod.yaml")
+    profile = load_rig(RIGS / "p1000-tripod.yaml")
     print(f"laser +-{laser_sigma_m:g} m, estimate +-{100 * own:g} %, at {z0:g} m; "
           "one sigma of the depth maps' scale and of f*C_lr, %")
     print(f"{'targets':>8} {'spread':>8} {'scale':>7} {'f*C_lr':>8}")

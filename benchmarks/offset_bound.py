@@ -2,7 +2,7 @@
 depth bias: the pipeline's offset error against the Cramér–Rao bound under the scene's
 shimmer.
 
-    python benchmarks/offset_bound.py out/field20/scenes/seed-2*
+    python -m benchmarks.offset_bound out/field20/scenes/seed-2*
 
 Per rendered scene (``rigkit synth`` with heat shimmer of the gaussian or vonkarman
 spectrum; a burst scene is read as ``rigkit depth`` reads one, its frames stacked),
@@ -122,8 +122,9 @@ def main(argv: list[str] | None = None) -> int:
               + f" ({row['points']:.0f} grid points)", file=sys.stderr, flush=True)
     if not rows:
         return 1
-    table = [[n] + [f"{r[c]:+.2f}" for c in cols[:-1]] + [f"{r['P(bound)']:.2f}"]
-             for n, r in zip(names, rows, strict=True)]
+    table: list[list[str] | None] = [
+        [n] + [f"{r[c]:+.2f}" for c in cols[:-1]] + [f"{r['P(bound)']:.2f}"]
+        for n, r in zip(names, rows, strict=True)]
     rms = [f"{math.sqrt(np.mean([r[c] ** 2 for r in rows])):.2f}" for c in cols[:-1]]
     table += [None, ["RMS", *rms, ""]]
     print("px of disparity offset; P(bound): the chance of the bar at the bound")

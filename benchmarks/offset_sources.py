@@ -1,7 +1,7 @@
 """Where a scene's disparity-offset error comes from: re-fit the offset with parts of
 the measured data replaced by the truth.
 
-    python benchmarks/offset_sources.py out/field20/scenes/seed-2*
+    python -m benchmarks.offset_sources out/field20/scenes/seed-2*
 
 For rendered scenes (``rigkit synth``, ground truth in the folder), per scene:
 
