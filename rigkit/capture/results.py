@@ -33,7 +33,7 @@ from rigkit.errors import InputError
 from rigkit.geometry import Distortion, distortion_coefficients
 from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
-from rigkit.rig.profile import MAX_RANGE_M
+from rigkit.rig.defaults import MAX_RANGE_M
 
 RESULTS_DIR = "results"
 """A session's newest run, replaced as a whole (:func:`rigkit.core.files.replace_folder`)."""

@@ -5,12 +5,17 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+
+from rigkit.capture import load_session, utc_now
+from rigkit.capture.positioning import set_rig, set_tripod_position
+from rigkit.capture.tripod import TripodPosition
+from rigkit.errors import InputError
+from rigkit.export.georef import utm_epsg
+from rigkit.rangefinder.framing import escape_bytes
+from rigkit.rangefinder.gps import mean_position, open_gps
 
 
 def run_set_rig(args: argparse.Namespace) -> int:
-    from rigkit.capture.positioning import set_rig
-
     session = set_rig(args.session, args.rig)
     lb = session.rig().baseline_lb
     print(f"{session.path}: rig {session.rig().name} (C_lb {lb.value_m:.4f} +- "
@@ -20,11 +25,6 @@ def run_set_rig(args: argparse.Namespace) -> int:
 
 
 def run_set_position(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.positioning import set_tripod_position
-    from rigkit.errors import InputError
-    from rigkit.export.georef import utm_epsg
-
     typed = [args.lat, args.lon, args.height_m]
     if args.gps is not None and any(v is not None for v in typed):
         raise InputError("give --lat, --lon and --height-m, or --gps, not both")
@@ -43,19 +43,11 @@ def run_set_position(args: argparse.Namespace) -> int:
     return 0
 
 
-def _typed(args: argparse.Namespace) -> Any:
-    from rigkit.capture import utc_now
-    from rigkit.capture.tripod import TripodPosition
-
+def _typed(args: argparse.Namespace) -> TripodPosition:
     return TripodPosition(args.lat, args.lon, args.height_m, "manual", utc_now())
 
 
-def _from_gps(args: argparse.Namespace) -> Any:
-    from rigkit.capture import utc_now
-    from rigkit.capture.tripod import TripodPosition
-    from rigkit.rangefinder.framing import escape_bytes
-    from rigkit.rangefinder.gps import mean_position, open_gps
-
+def _from_gps(args: argparse.Namespace) -> TripodPosition:
     fixes = []
     with open_gps(args.gps, baud=args.baud, timeout=args.timeout) as gps:
         for _ in range(args.fixes):

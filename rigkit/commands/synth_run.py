@@ -3,16 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import math
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rigkit.commands import parse_distortion
+from rigkit.core.progress import Progress
+from rigkit.errors import InputError
+from rigkit.rig import load_rig
+from rigkit.synth import SynthParams, field_params, generate_scene, write_scene
+from rigkit.synth.io import VIEWS
+from rigkit.synth.scene import Scene
+
 
 def _rig_settings(path: Path) -> dict[str, float]:
-    import math
-
-    from rigkit.rig import load_rig
-
     rig = load_rig(path)
     w, h = rig.image_size
     side, up = rig.back_offset_m or (0.0, 0.0)
@@ -28,10 +34,6 @@ def _rig_settings(path: Path) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.core.progress import Progress
-    from rigkit.synth import SynthParams, generate_scene
-    from rigkit.synth.io import VIEWS
-
     d = SynthParams()
     settings: dict[str, float] = {
         "width": d.width,
@@ -93,16 +95,11 @@ _CONDITION_FLAGS = {
 }
 
 
-def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
+def _field_conditions(args: argparse.Namespace, params: SynthParams) -> SynthParams:
     """``params`` with --field's preset and the field and world flags given applied."""
-    from dataclasses import replace
-
-    from rigkit.commands import parse_distortion
-    from rigkit.synth import field_params
-
     if args.field:
         params = field_params(params)
-    changes: dict[str, Any] = {
+    changes: dict[str, Any] = {  # flags of several types, checked by SynthParams
         name: getattr(args, flag) for flag, name in _CONDITION_FLAGS.items()
         if getattr(args, flag) is not None
     }
@@ -115,11 +112,8 @@ MAX_TARGETS = 1000
 """The most laser targets a synthetic session gets (each is a line of session.yaml)."""
 
 
-def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
+def _write(args: argparse.Namespace, scene: Scene, progress: Progress) -> str:
     """Render ``scene`` as a scene folder or a session; what was written, in words."""
-    from rigkit.errors import InputError
-    from rigkit.synth import write_scene
-
     if args.session:
         from rigkit.synth.session import write_synthetic_session
 
