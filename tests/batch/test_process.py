@@ -73,9 +73,9 @@ def test_results_folder_is_complete(processed_session: Path) -> None:
 
 
 def test_reprocessing_replaces_results_and_keeps_history(
-    processed_session: Path, tmp_path: Path
+    processed_small: Path, tmp_path: Path
 ) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     raw_before = {p.name: p.read_bytes() for p in (copy / "raw").iterdir()}
     process_session(copy, "20260102T000000Z-0002")
     meta = json.loads((copy / "results" / "depth.json").read_text())
@@ -87,9 +87,9 @@ def test_reprocessing_replaces_results_and_keeps_history(
 
 
 def test_a_failed_write_leaves_the_old_results(
-    processed_session: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    processed_small: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     before = (copy / "results" / "depth.json").read_text()
 
     def broken(img: np.ndarray, compression: int | None = None) -> bytes:
@@ -103,8 +103,8 @@ def test_a_failed_write_leaves_the_old_results(
     assert len(read_rows(copy / LOG_NAME)) == 5
 
 
-def test_an_interrupted_swap_is_undone(processed_session: Path, tmp_path: Path) -> None:
-    copy = copy_session(processed_session, tmp_path)
+def test_an_interrupted_swap_is_undone(processed_small: Path, tmp_path: Path) -> None:
+    copy = copy_session(processed_small, tmp_path)
     os.rename(copy / "results", copy / ".results-old-20260104T000000Z-0004")
     (copy / ".results-20260105T000000Z-0005").mkdir()
     recover_folder(copy, "results")
@@ -196,10 +196,10 @@ def test_range_from_depth_on_a_plane(synth_session: Path) -> None:
     assert row.status == "no_estimate" and math.isnan(row.error_pct)
 
 
-def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Path) -> None:
+def test_a_session_being_processed_is_refused(small_session: Path, tmp_path: Path) -> None:
     import fcntl
 
-    copy = copy_session(synth_session, tmp_path)
+    copy = copy_session(small_session, tmp_path)
     with open(copy / ".lock", "a") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
         with pytest.raises(InputError, match="busy: another rigkit command holds it"):
