@@ -58,6 +58,7 @@ def test_the_script_imports_and_answers_help(name: str,
     assert "usage:" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(TINY))
 def test_the_scripts_smallest_run(name: str, tmp_path: Path) -> None:
     """A fresh process, as the README runs it: ``python -m benchmarks.NAME``."""

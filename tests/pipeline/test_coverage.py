@@ -48,6 +48,7 @@ def scored(tmp_path_factory: pytest.TempPathFactory) -> list[Scored]:
     return out
 
 
+@pytest.mark.slow
 def test_the_offset_error_is_within_two_sigma_on_every_scene(scored: list[Scored]) -> None:
     for s in scored:
         assert abs(s.offset_error_px) <= 2 * s.offset_sigma_px, s
@@ -57,6 +58,7 @@ def test_the_offset_error_is_within_two_sigma_on_every_scene(scored: list[Scored
     assert math.sqrt(np.mean(np.square(ratios))) > 0.2, ratios
 
 
+@pytest.mark.slow
 def test_each_pixels_sigma_covers_its_depth_error(scored: list[Scored]) -> None:
     for s in scored:
         assert s.covered >= 0.9, s

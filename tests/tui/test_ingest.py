@@ -43,6 +43,7 @@ def _count(monkeypatch: pytest.MonkeyPatch) -> tuple[Counter[str], Counter[str]]
     return decoded, hashed
 
 
+@pytest.mark.slow
 @synchronous
 async def test_a_burst_frame_arriving_is_decoded_once_for_all_its_checks(
         demo: Demo, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
