@@ -6,13 +6,9 @@ import argparse
 from pathlib import Path
 
 from rigkit.commands import count, finite
+from rigkit.rig.defaults import DISPARITY_ERROR_PX, MAX_RANGE_M, SHIMMER_PX
 
 DEFAULT_RANGE_M = 300.0
-# The budget's defaults, repeated here so that --help does not import the pipeline they
-# come from: rigkit.rig.budget.DISPARITY_ERROR_PX (the pipeline's stereo_noise_px) and
-# rigkit.rig.bursts.SHIMMER_PX (tests/commands/test_loading.py holds them equal).
-DISPARITY_ERROR_PX = 0.25
-SHIMMER_PX = 0.3
 
 _RIG_EPILOG = """\
 example:
@@ -178,10 +174,6 @@ def _non_negative_float(text: str) -> float:
 
 def _float(text: str) -> float:
     return finite(text)
-
-
-MAX_RANGE_M = 100_000.0
-"""The longest range ``--range`` takes (as a profile's ``nominal_range_m``)."""
 
 
 def _range_m(text: str) -> float:

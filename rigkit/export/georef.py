@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from rigkit.capture.session import Session
+from rigkit.capture.model import Session
 from rigkit.capture.tripod import TripodPosition, enu_direction
 from rigkit.errors import InputError
 from rigkit.export.crs import VERTICAL_RECORDED, MapCrs, map_crs

@@ -12,27 +12,23 @@ target of a run, and is what the fit measures.
 A calibration reads each session's current run, the one in its ``results/`` (under the
 session's lock, after the repair every command makes: a run stopped between its results
 and its log is finished first), never the log's history: the rows of
-``results/comparisons.csv`` and the reference of ``results/depth.json``
-(:func:`rigkit.capture.session.run_metadata`, read in one place here, ``_depth_json``).
+``results/comparisons.csv`` and the reference of its record, ``results/depth.json``
+(:func:`rigkit.capture.results.session_record`).
 """
 
 from __future__ import annotations
 
 import hashlib
-import io
 import math
 import os
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
-import numpy as np
-
-from rigkit.capture import RESULTS_DIR, Session
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
-from rigkit.capture.session import POSITIONS, run_metadata, utc_now
-from rigkit.core.safefs import read_regular
+from rigkit.capture.model import POSITIONS, Session
+from rigkit.capture.results import RESULTS_DIR, RunRecord, session_record
+from rigkit.capture.session import utc_now
 from rigkit.core.tables import render_table, visible
 from rigkit.errors import InputError
 from rigkit.rig.calibration import (
@@ -69,30 +65,19 @@ class RunReference:
     offset_fraction: float
     offset_floor: float = 0.0
 
-
-def _depth_json(folder: Path) -> dict[str, Any] | None:
-    """The folder's ``results/depth.json`` (None where none is readable): the one place
-    this module reads it (:func:`rigkit.capture.session.run_metadata`)."""
-    return run_metadata(folder)
+    @classmethod
+    def of(cls, record: RunRecord) -> RunReference:
+        """A run's reference from its record (NaN median without a depth; an unknown
+        offset share as 0; no floor)."""
+        median = record.median_depth_m
+        return cls(math.nan if median is None else median, record.offset_depth_fraction or 0.0)
 
 
 def run_reference(session_path: Path) -> RunReference | None:
-    """The latest run's reference (None where the session has no readable run)."""
-    results = session_path / RESULTS_DIR
-    meta = _depth_json(session_path)
-    if meta is None:
-        return None
-    median = meta.get("median_depth_m")
-    if not isinstance(median, int | float):  # a run before depth.json recorded it
-        try:
-            depth = np.load(io.BytesIO(read_regular(results / "depth.npy")))
-        except (OSError, ValueError, InputError):
-            return None
-        known = depth[np.isfinite(depth)]
-        median = float(np.median(known)) if known.size else math.nan
-    fraction = meta.get("offset_depth_error_fraction")
-    return RunReference(float(median), float(fraction) if isinstance(
-        fraction, int | float) else 0.0)
+    """The latest run's reference: None where the session has none; InputError where
+    its record is refused (:func:`rigkit.capture.results.read_record`)."""
+    record = session_record(session_path)
+    return None if record is None else RunReference.of(record)
 
 
 def laser_targets(rows: Sequence[Comparison], reference: RunReference, run: str,
@@ -245,7 +230,7 @@ def session_scale_note(path: Path) -> str:
         rows = current_rows(path)
     except InputError:
         return ""
-    profile = session.rig()
+    profile = session.rig()  # a refused record of the run: InputError, one line
     note = run_scale_note(rows, profile, run_reference(path),
                           calibration_targets(profile, session)) if rows else ""
     return f"{note}; scale {scale_source(profile)}" if note else f"scale {scale_source(profile)}"
@@ -264,7 +249,11 @@ def current_rows(folder: Path, torn: list[str] | None = None) -> list[Comparison
     if not log.is_file():
         return []
     rows = read_rows(log, torn)
-    run = (_depth_json(folder) or {}).get("run_id")
+    try:
+        record = session_record(folder)
+    except InputError:  # a record refused names no run: the log's newest
+        record = None
+    run = record.run_id if record is not None else None
     mine = [row for row in rows if row.run_id == run]
     return mine if mine else latest_run(rows)
 
@@ -382,7 +371,8 @@ def read_run(path: Path) -> SessionRun:
     """A session's current run, read under its lock after repairing what an interrupted
     command left (:func:`rigkit.capture.actions.changing`); InputError where it is not
     processed, its results no longer show it, or they hold no laser target."""
-    from rigkit.capture.actions import changing, stale_results
+    from rigkit.capture.actions import changing
+    from rigkit.capture.results import stale_results
     from rigkit.capture.session import load_session
 
     load_session(path)  # a clear error for a folder that is no session, before locking
@@ -390,16 +380,16 @@ def read_run(path: Path) -> SessionRun:
         stale = stale_results(session)
         if stale:
             raise InputError(f"{session.path}: {stale} (rigkit process {session.path})")
-        meta = _depth_json(session.path)
-        reference = run_reference(session.path)
+        record = session_record(session.path)
         rows = current_rows(session.path)
-    run_id = (meta or {}).get("run_id")
-    if reference is None or not rows or not isinstance(run_id, str):
+    run_id = record.run_id if record is not None else None
+    if record is None or not rows or run_id is None:
         raise InputError(f"{session.path}: not processed with laser targets yet "
                          f"(rigkit process {session.path})")
     if any(row.run_id != run_id for row in rows):
         raise InputError(f"{session.path}: results/{LOG_NAME} is not the run of "
                          f"results/depth.json ({run_id}); process it again")
+    reference = RunReference.of(record)
     reference = replace(reference, offset_floor=offset_floor(session,
                                                             reference.median_depth_m))
     return SessionRun(session, plain(session.name), frames_fingerprint(session), run_id,

@@ -38,6 +38,7 @@ from rigkit.geometry import Distortion
 from rigkit.pipeline import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings, setting_names, setting_type
 from rigkit.rig.camera import CameraSpec, Intrinsics, camera_to_dict, intrinsics, read_camera
+from rigkit.rig.defaults import MAX_RANGE_M
 
 PROFILE_VERSION = 1
 CAMERA_ROLES = ("left", "right", "back")
@@ -46,7 +47,6 @@ FOCAL_AGREEMENT = 0.001
 _MAX_BASELINE_M = 100.0
 _MIN_BASELINE_M = 0.01
 _MAX_OFFSET_M = 10.0
-MAX_RANGE_M = 100_000.0
 _MAX_BAUD = 4_000_000
 _PROTOCOL_PATTERN = re.compile(r"[a-z0-9][a-z0-9_-]*")
 AZIMUTH_REFERENCES = ("true", "magnetic")
