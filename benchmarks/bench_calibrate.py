@@ -42,9 +42,12 @@ from benchmarks.common import OUT, RIGS, seed_list
 from rigkit.batch import new_run_id, process_session
 from rigkit.capture.positioning import set_rig
 from rigkit.errors import InputError
-from rigkit.reporting.scale import calibration_record, read_sessions
+from rigkit.reporting.calibration_report import calibration_record
+from rigkit.reporting.scale import read_sessions
 from rigkit.rig import load_rig
-from rigkit.rig.calibration import LaserTarget, calibrated_profile, fit_scale
+from rigkit.rig.adjustment import LaserTarget
+from rigkit.rig.calibrated import calibrated_profile
+from rigkit.rig.calibration import fit_scale
 from rigkit.rig.profile import dump_rig
 from rigkit.synth import SynthParams, generate_scene
 from rigkit.synth.evaluate import evaluate_scene

@@ -135,7 +135,7 @@ def _calibrated_session(tmp_path: Path):
     from rigkit.capture.model import LaserReading
     from rigkit.capture.targets import add_target
     from rigkit.reporting.scale import frames_fingerprint
-    from rigkit.rig.profile import Calibration, CalibrationSource
+    from rigkit.rig.provenance import Calibration, CalibrationSource
 
     path = tmp_path / "ridge"
     session = create_session(path, ROOT / "rigs" / "p1000-tripod.yaml")
