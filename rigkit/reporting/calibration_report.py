@@ -19,7 +19,7 @@ from rigkit.rig.adjustment import (
     PRIOR_SHAPE,
     LaserTarget,
 )
-from rigkit.rig.calibration import GOAL_PCT, Check, ScaleFit
+from rigkit.rig.calibration import GLOBAL_P, GOAL_PCT, Check, ScaleFit
 from rigkit.rig.profile import RigProfile
 from rigkit.rig.provenance import Calibration, CalibrationSource
 
@@ -138,8 +138,8 @@ def _value_lines(fit: ScaleFit, profile: RigProfile) -> list[str]:
 def _test_lines(fit: ScaleFit) -> list[str]:
     if not fit.dof:
         return ["test      no degrees of freedom: nothing checks the fit"]
-    verdict = "passed" if fit.chance >= 0.05 else (
-        f"failed at 5 %: the sigmas are scaled by sigma0 = {fit.sigma0:.2f}")
+    verdict = "passed" if fit.chance >= GLOBAL_P else (
+        f"failed at {100 * GLOBAL_P:g} %: the sigmas are scaled by sigma0 = {fit.sigma0:.2f}")
     line = (f"test      sigma0 (a posteriori, of unit weight) {fit.sigma0:.2f}; chi-square "
             f"{fit.chi2:.2f} on {fit.dof} degrees of freedom, chance {fit.chance:.2f}: "
             f"{verdict}")
