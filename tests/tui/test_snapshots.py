@@ -118,4 +118,12 @@ def test_results_of_a_run(snap_compare, capture: Path) -> None:
     record = make_record(session, median_depth_m=None)  # no scale line
     (path / "results" / "depth.json").write_text(record.to_json())
     append_rows(path / LOG_NAME, [_row("T1", 301.2, 0.8), _row("T2", 288.0, -4.6)])
-    assert snap_compare(app_for(capture, path), terminal_size=SIZE)
+    app = app_for(capture, path)
+
+    async def shown_run(pilot) -> None:
+        # The run is read off the screen's thread; the table sizes its columns to the
+        # rows once the app is idle: under load the picture was taken in between.
+        await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
+        await pilot.pause()
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=shown_run)
