@@ -9,7 +9,8 @@ standard library and this package's argument modules. ``NAME_run.py`` is the cod
 to import what it needs: ``rigkit.cli`` imports it only when its command runs. A value
 the help shows that the library uses too (a default, a list of choices) lives once, in a
 light module of its layer that both import (``rigkit.rig.defaults``,
-``rigkit.rangefinder.defaults``, ``rigkit.experiments.defaults``); tests/commands/
+``rigkit.rangefinder.defaults``, ``rigkit.experiments.defaults``,
+``rigkit.export.defaults``); tests/commands/
 test_loading.py holds help to importing nothing else.
 """
 

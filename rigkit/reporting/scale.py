@@ -32,12 +32,8 @@ from rigkit.core.tables import visible
 from rigkit.errors import InputError
 from rigkit.rig.adjustment import LaserTarget
 from rigkit.rig.calibration import ScaleFit, fit_scale
+from rigkit.rig.defaults import LASER_ACCURACY_M
 from rigkit.rig.profile import RigProfile
-
-LASER_ACCURACY_M = 0.3
-"""One laser reading's one-sigma error, m, where nothing better is known: a handheld
-rangefinder's stated accuracy on a good target (a TruPulse's +-0.3 m)."""
-
 
 SCALE_NOTICE = 0.001
 """A scale the lasers put further than this (and than 2 sigma) from the profile's is

@@ -30,11 +30,9 @@ from rigkit.rig.adjustment import (
     prediction,
     sees_shape,
 )
+from rigkit.rig.defaults import CRITICAL_W
 from rigkit.rig.profile import RigProfile
 
-CRITICAL_W = 3.29
-"""A standardised residual beyond this marks a blunder (two-sided alpha 0.001, Baarda's
-usual critical value for data snooping)."""
 GROSS_W = 10.0
 """Gross errors are found first, each target alone against the profile's values beyond
 this many sigmas (its own, the tape's and the stretch f*C_lr's tolerance allows): about

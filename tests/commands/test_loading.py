@@ -24,7 +24,8 @@ PARSER_SIDE = ("rigkit.cli", "rigkit.commands", "rigkit.core", "rigkit.errors")
 """Where the rigkit modules that building the parser imports may come from (not from
 the library's layers: rigkit.pipeline, rig, capture, ...)."""
 HELP_VALUES = ("rigkit.rig.defaults", "rigkit.rangefinder.defaults",
-               "rigkit.experiments.defaults", "rigkit.pipeline.settings")
+               "rigkit.experiments.defaults", "rigkit.export.defaults",
+               "rigkit.pipeline.settings")
 """The one place of each value --help shows that a library layer uses too (a default, a
 list of choices), light modules both import; and their packages, whose names load on
 first use."""

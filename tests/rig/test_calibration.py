@@ -14,9 +14,9 @@ import pytest
 from rigkit.errors import InputError
 from rigkit.rig import load_rig
 from rigkit.rig.adjustment import LaserTarget
-from rigkit.rig.blunders import CRITICAL_W
 from rigkit.rig.calibrated import calibrated_name, calibrated_profile
 from rigkit.rig.calibration import fit_scale
+from rigkit.rig.defaults import CRITICAL_W
 from rigkit.rig.profile import dump_rig
 from rigkit.rig.provenance import Calibration, CalibrationSource
 
