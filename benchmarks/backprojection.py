@@ -2,7 +2,7 @@
 distorting scene: the bundled example (lens k1 0.47, the corner 2.4 px out), processed,
 placed on the map from its truth.
 
-    python benchmarks/backprojection.py --work out/bench-backprojection
+    python -m benchmarks.backprojection --work out/bench-backprojection
 
 For every estimated pixel, the point rigkit exports (its depth along the pixel's ray, the
 camera oriented by the fit to the targets' laser directions through the same rays) is
@@ -10,19 +10,21 @@ compared with the ray-traced point, both in the local east-north-up frame at the
 the distance across the line of sight (the depth's own error lies along it), at the
 image centre (within 10 % of the half-diagonal) and the corners (beyond 90 %). Then each
 target's estimated range (the laser comparison's) against its true range. Once through
-the run's lens (rigkit's), once through a pinhole at the same principal point (before
-issue 51).
+the run's lens (rigkit's), once through a pinhole at the same principal point (as
+rigkit back-projected before it used the run's lens).
 """
 
 from __future__ import annotations
 
 import argparse
 import shutil
+import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks.common import OUT, ROOT
 from rigkit.batch import process_session
 from rigkit.capture import load_session
 from rigkit.export.georef import orient_camera
@@ -33,7 +35,7 @@ from rigkit.rangefinder.ranging import range_on_ray
 from rigkit.synth import load_scene
 from rigkit.synth.placement import Placement
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "capture" / "example"
+EXAMPLE = ROOT / "capture" / "example"
 PLACED = Placement(46.55123, 7.98456, 1012.0, 47.3, -50.0, 0.0, 49.6)
 """How capture/example was placed (rigkit.synth.placement.place_session)."""
 
@@ -51,10 +53,10 @@ def across_mm(source: DepthMap, truth_enu: np.ndarray, pixels: np.ndarray,
     return 1000 * np.linalg.norm(error - along[:, None] * line, axis=1)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--work", type=Path, default=Path("out/bench-backprojection"))
-    args = parser.parse_args()
+    parser.add_argument("--work", type=Path, default=OUT / "bench-backprojection")
+    args = parser.parse_args(argv)
     session_path = args.work / "example"
     if not (session_path / "results" / "depth.npy").is_file():
         shutil.rmtree(session_path, ignore_errors=True)
@@ -98,7 +100,8 @@ def main() -> None:
         lens_mm, pinhole_mm = (1000 * (r - true_range) for r in ranges)
         print(f"  {target.name}  pixel ({pu:6.0f}, {pv:6.0f})  lens {lens_mm:+8.1f}  pinhole "
               f"{pinhole_mm:+8.1f}  difference {lens_mm - pinhole_mm:+6.2f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

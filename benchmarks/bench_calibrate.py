@@ -1,9 +1,9 @@
 """The rig calibrated by its own laser (`rigkit rig calibrate`), on rendered sessions
 whose profile is wrong: depth bias against ground truth before and after.
 
-    python benchmarks/bench_calibrate.py --seeds 301-320 --width 2304 --work out/bench-calibrate
-    python benchmarks/bench_calibrate.py --seeds 321-326 --stray 10   # one reading 10 % off
-    python benchmarks/bench_calibrate.py --mistakes --seeds 501-524 --width 2304
+    python -m benchmarks.bench_calibrate --seeds 301-320 --width 2304 --work out/bench-calibrate
+    python -m benchmarks.bench_calibrate --seeds 321-326 --stray 10   # one reading 10 % off
+    python -m benchmarks.bench_calibrate --mistakes --seeds 501-524 --width 2304
 
 Each seed renders a scene at the paper's protocol (--width px across 6 deg, 300 m) as a
 session with laser targets whose readings carry --laser-sigma-m of noise, and gives it a
@@ -37,14 +37,17 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from eval_synthetic import seed_list  # this folder is on sys.path when run as a script
 
+from benchmarks.common import OUT, RIGS, seed_list
 from rigkit.batch import new_run_id, process_session
 from rigkit.capture.positioning import set_rig
 from rigkit.errors import InputError
-from rigkit.reporting.scale import calibration_record, read_sessions
+from rigkit.reporting.calibration_report import calibration_record
+from rigkit.reporting.scale import read_sessions
 from rigkit.rig import load_rig
-from rigkit.rig.calibration import LaserTarget, calibrated_profile, fit_scale
+from rigkit.rig.adjustment import LaserTarget
+from rigkit.rig.calibrated import calibrated_profile
+from rigkit.rig.calibration import fit_scale
 from rigkit.rig.profile import dump_rig
 from rigkit.synth import SynthParams, generate_scene
 from rigkit.synth.evaluate import evaluate_scene
@@ -81,7 +84,7 @@ class Outcome:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", default="301-320")
-    parser.add_argument("--work", type=Path, default=Path("out/bench-calibrate"))
+    parser.add_argument("--work", type=Path, default=OUT / "bench-calibrate")
     parser.add_argument("--width", type=int, default=1152)
     parser.add_argument("--targets", type=int, default=6)
     parser.add_argument("--laser-sigma-m", type=float, default=0.3)
@@ -216,7 +219,7 @@ def _plan(laser_sigma_m: float, own: float = 0.002, z0: float = 300.0) -> None:
     """The one-sigma the fit leaves, for N targets spread evenly over +-spread of z0, each
     with the laser's sigma and an estimate good to ``own`` (0.2 %), under the P1000
     profile's tolerances (the laser's constant a priori 0 +- one reading's sigma)."""
-    profile = load_rig(Path(__file__).resolve().parents[1] / "rigs" / "p1000-tripod.yaml")
+    profile = load_rig(RIGS / "p1000-tripod.yaml")
     print(f"laser +-{laser_sigma_m:g} m, estimate +-{100 * own:g} %, at {z0:g} m; "
           "one sigma of the depth maps' scale and of f*C_lr, %")
     print(f"{'targets':>8} {'spread':>8} {'scale':>7} {'f*C_lr':>8}")

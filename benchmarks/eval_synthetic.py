@@ -1,13 +1,13 @@
 """Accuracy on the paper's synthetic protocol: render seeds (if missing), estimate depth,
 print the Table-1-style evaluation.
 
-    python benchmarks/eval_synthetic.py --seeds 101-120 --work out/eval20
-    python benchmarks/eval_synthetic.py --seeds 1-3 --width 1152 --height 864 --work out/small
-    python benchmarks/eval_synthetic.py --field --seeds 201-220 --work out/field20
-    python benchmarks/eval_synthetic.py --field --corner-distortion 0.2 --work out/field20-dist
-    python benchmarks/eval_synthetic.py --field --corner-distortion 0.2 --give-distortion ...
-    python benchmarks/eval_synthetic.py --field --set distance_m=500 --set hfov_deg=3 ...
-    python benchmarks/eval_synthetic.py --kind all --count 3 --work out/kinds
+    python -m benchmarks.eval_synthetic --seeds 101-120 --work out/eval20
+    python -m benchmarks.eval_synthetic --seeds 1-3 --width 1152 --height 864 --work out/small
+    python -m benchmarks.eval_synthetic --field --seeds 201-220 --work out/field20
+    python -m benchmarks.eval_synthetic --field --corner-distortion 0.2 --work out/field20-dist
+    python -m benchmarks.eval_synthetic --field --corner-distortion 0.2 --give-distortion ...
+    python -m benchmarks.eval_synthetic --field --set distance_m=500 --set hfov_deg=3 ...
+    python -m benchmarks.eval_synthetic --kind all --count 3 --work out/kinds
 
 Seeds 101-120 were never used while developing the pipeline (development used 1-5).
 ``--field`` renders what a real capture has (``rigkit synth --field``: sky, haze,
@@ -34,12 +34,13 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.common import OUT, seed_list
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.burst import stack_burst
 from rigkit.pipeline.distortion import corner_shift_px
-from rigkit.pipeline.images import load_grey
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene
@@ -62,7 +63,7 @@ def scene_params(args: argparse.Namespace, kind: Kind | None = None) -> SynthPar
     if kind.corner_distortion:
         k1 = corner_k1(params, kind.corner_distortion)
         params = replace(params, distortion=(k1, 0, 0, 0, 0))
-    params = replace(params, burst=kind.burst, **dict(kind.settings))
+    params = replace(params, burst=kind.burst, **dict(kind.settings))  # type: ignore[arg-type]
     params.validate()
     return params
 
@@ -139,15 +140,6 @@ def lens_note(res, truth) -> str:
     return f", lens corner {fitted} (true {true:+.2f}{kept})"
 
 
-def seed_list(text: str) -> list[int]:
-    """``101-120``, ``7`` or ranges joined by commas (``601-603,605-621``)."""
-    seeds = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        seeds += range(int(lo), int(hi or lo) + 1)
-    return seeds
-
-
 @dataclass
 class Run:
     """One set of scenes evaluated: the scores and, per scene, whether its offset came
@@ -176,12 +168,12 @@ def run_scenes(params: SynthParams, seeds: list[int], work: Path, args: argparse
         rig = RigGeometry(truth.focal_px, truth.baseline_lr_m, truth.baseline_lb_m, lens,
                           one_camera=truth.params.one_camera and not args.three_cameras)
         t0 = time.perf_counter()
-        imgs = [
+        left, right, back = (
             stack_burst([load_grey(p) for p in truth.frame_paths(v)], v)
             for v in ("left", "right", "back")
-        ]
+        )
         try:
-            res = estimate_depth(*imgs, rig, settings=settings)
+            res = estimate_depth(left, right, back, rig, settings=settings)
         except RigkitError as exc:
             print(f"seed {seed}: FAILED: {exc}", file=sys.stderr)
             (depth_dir / f"{d.name}.npy").unlink(missing_ok=True)
@@ -227,14 +219,14 @@ def summary(runs: dict[str, Run]) -> str:
                          "offset within 2 sigma"], lines, left=[0])
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--seeds", default="101-120")
     ap.add_argument("--width", type=int, default=4608)
     ap.add_argument("--height", type=int, default=3456)
-    ap.add_argument("--work", type=Path, default=Path("out/eval"))
+    ap.add_argument("--work", type=Path, default=OUT / "eval")
     ap.add_argument("--field", action="store_true", help="field conditions (rigkit synth --field)")
     ap.add_argument("--corner-distortion", type=float, default=0.0,
                     help="radial distortion, %% of the radius at the image corner (not given "
@@ -260,7 +252,7 @@ def main() -> int:
                     + ", ".join(KINDS))
     ap.add_argument("--count", type=int, default=0,
                     help="with --kind: the first N of each kind's held-out seeds")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     settings = PipelineSettings(distortion_terms=0) if args.fixed_lens else PipelineSettings()
     names = list(KINDS) if "all" in args.kind else args.kind
     try:

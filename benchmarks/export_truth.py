@@ -2,7 +2,7 @@
 example (a distorting scene placed at 46.55 N 7.98 E, rigkit.synth.placement),
 processed, exported in its UTM zone and in Swiss LV95.
 
-    python benchmarks/export_truth.py --work out/bench-export-truth [--step 1]
+    python -m benchmarks.export_truth --work out/bench-export-truth [--step 1]
 
 For each LAS point, its error along the line of sight against its stated sigma (the
 share within 1, 2 and 3 sigma; a Gaussian error gives 68, 95 and 99.7 %) and its
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -24,12 +25,13 @@ import numpy as np
 import pyproj
 import rasterio
 
+from benchmarks.common import OUT, ROOT
 from rigkit.batch import process_session
 from rigkit.export import MapRequest, export_path
 from rigkit.synth import load_scene
 from rigkit.synth.placement import Placement, true_map_points
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "capture" / "example"
+EXAMPLE = ROOT / "capture" / "example"
 PLACEMENT = Placement(46.55123, 7.98456, 1012.0, 47.3, -50.0, 0.0, 49.6)
 """How capture/example was placed."""
 
@@ -38,11 +40,11 @@ def shares(ratio: np.ndarray) -> str:
     return " / ".join(f"{100 * float((ratio <= k).mean()):.1f}" for k in (1, 2, 3))
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--work", type=Path, default=Path("out/bench-export-truth"))
+    parser.add_argument("--work", type=Path, default=OUT / "bench-export-truth")
     parser.add_argument("--step", type=int, default=1)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     session = args.work / "example"
     if not (session / "results" / "depth.npy").is_file():
         shutil.rmtree(session, ignore_errors=True)
@@ -94,7 +96,8 @@ def main() -> None:
               f"{np.median(np.abs(elevation - true_cells)[both]):.3f} m, median sigma "
               f"{np.median(band[both]):.3f} m; LAS: median |error| along "
               f"{np.median(np.abs(along)):.3f} m, median sigma {np.median(stated):.3f} m")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

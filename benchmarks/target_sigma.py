@@ -5,7 +5,7 @@ surveyor would sign").
     rigkit synth out/ts/s301 --seed 301 --width 1152 --height 864 --session \
         --targets 30 --laser-noise 0.3      # and --field, --width 2304, other seeds
     rigkit process out/ts/s301
-    python benchmarks/target_sigma.py out/ts/*
+    python -m benchmarks.target_sigma out/ts/*
 
 For each processed session: each target's estimate against its true range (the synthetic
 writer notes it), less the session's median miss (the run's offset, common to its
@@ -18,7 +18,6 @@ the misses in units of the measured sigma with the laser's (robust RMS: 1 is hon
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -28,6 +27,7 @@ import numpy as np
 from rigkit.batch.compare import median_scatter
 from rigkit.capture import load_session
 from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
+from rigkit.capture.results import RunFiles, read_record
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,9 +56,9 @@ def _session(path: Path, laser_m: float) -> np.ndarray:
     session = load_session(path)
     depth = np.load(path / "results" / "depth.npy")
     sigma = np.load(path / "results" / "sigma.npy")
-    meta = json.loads((path / "results" / "depth.json").read_text())
-    offset = meta.get("offset_depth_error_fraction") or 0.0
-    median_depth = meta.get("median_depth_m") or math.nan
+    record = read_record(RunFiles.of_session(path).record)
+    offset = record.offset_depth_fraction or 0.0
+    median_depth = record.median_depth_m or math.nan
     rows = {r.target: r for r in latest_run(read_rows(path / LOG_NAME))}
     misses, pixel, measured = [], [], []
     for target in session.targets:

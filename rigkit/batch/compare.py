@@ -12,7 +12,8 @@ from rigkit.capture.comparisons import (
     STATUS_OK,
     Comparison,
 )
-from rigkit.capture.session import Session, Target, utc_now
+from rigkit.capture.model import Session, Target
+from rigkit.capture.session import utc_now
 from rigkit.pipeline.lens import Lens
 from rigkit.rangefinder.ranging import aperture_offset, range_on_ray
 

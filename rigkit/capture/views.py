@@ -18,10 +18,10 @@ from typing import TypeVar
 import cv2
 import numpy as np
 
-from rigkit.capture.picture import CLIP_LEVEL
-from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.capture.session import DERIVED_DIR, Frame, Session
+from rigkit.capture.model import DERIVED_DIR, Frame, Session
 from rigkit.core.threads import ViewPool
+from rigkit.imagefile.picture import CLIP_LEVEL
+from rigkit.imagefile.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, Parallax, measure_parallax
 from rigkit.pipeline.features import Reference, match_to, prepare_left
 from rigkit.pipeline.rectify import pseudo_rectify
@@ -64,7 +64,7 @@ class ViewMap:
 
 def decoded(session: Session, frame: Frame) -> np.ndarray:
     """A frame decoded: (H, W) float32 grey in [0, 1] of full scale
-    (:func:`rigkit.capture.rawio.load_linear_grey`, RAW through the session's cache)."""
+    (:func:`rigkit.imagefile.rawio.load_linear_grey`, RAW through the session's cache)."""
     return load_linear_grey(session.path / frame.file, session.path / DERIVED_DIR, frame.sha256)
 
 
@@ -116,13 +116,40 @@ def check_frame(session: Session, frame: Frame) -> CheckFrame:
 def _decode_for_checks(session: Session, frame: Frame) -> tuple[CheckFrame, np.ndarray]:
     """``frame`` decoded: its :class:`CheckFrame`, and the frame at full resolution as
     :func:`full_image` gives it."""
-    grey = decoded(session, frame)
+    return _for_checks(decoded(session, frame), is_raw(session.path / frame.file))
+
+
+def _for_checks(grey: np.ndarray, linear: bool) -> tuple[CheckFrame, np.ndarray]:
+    """A decoded frame (``grey``: (H, W) float32 in [0, 1], scaled in place; ``linear``:
+    from RAW) as its :class:`CheckFrame` and at full resolution as :func:`full_image`
+    gives it."""
     clipped = np.count_nonzero(grey >= CLIP_LEVEL) / grey.size
-    linear = is_raw(session.path / frame.file)
     full = to_pipeline([grey], linear=linear, overwrite=True)[0]
     image, reduction = reduced(full)
     image.flags.writeable = False
     return CheckFrame(image, reduction, clipped), full
+
+
+_FULL: dict[str, np.ndarray] = {}
+"""The newest frame handed in at ingest at full resolution (:func:`admit`), by SHA-256,
+until its shimmer is measured (:func:`decoded_with_full`): one frame at a time."""
+
+
+def admit(sha256: str, grey: np.ndarray, linear: bool, keep_full: bool) -> CheckFrame:
+    """A frame decoded on its way into the session (:func:`rigkit.capture.actions.
+    staged_frame`; ``grey`` (H, W) float32 in [0, 1], scaled in place; ``linear``: from
+    RAW) made its checks' :class:`CheckFrame`, kept by its SHA-256 for every check that
+    follows: the burst comparison, its own checks, the later positions' against it. With
+    ``keep_full`` (a burst's later frame, whose shimmer is measured at full resolution)
+    the full-resolution frame is kept too, until its checks take it. So a frame that
+    arrives is decoded once."""
+    checked, full = _for_checks(grey, linear)
+    kept(_CHECK_FRAMES, sha256, lambda: checked)
+    with _lock:
+        _FULL.clear()
+        if keep_full:
+            _FULL[sha256] = full
+    return checked
 
 
 def check_image(session: Session, frame: Frame) -> tuple[np.ndarray, float]:
@@ -224,13 +251,15 @@ def _local_linear(a: np.ndarray, b: np.ndarray, point: tuple[float, float],
 
 def decoded_with_full(session: Session, frame: Frame) -> np.ndarray | None:
     """Decodes ``frame`` for its checks (:func:`check_frame`) and gives it at full
-    resolution too (as :func:`full_image`) where this decodes it; None where it was
-    decoded before (the full-resolution frame is not kept): one decoding for both."""
+    resolution too (as :func:`full_image`) where this decodes it or :func:`admit` kept
+    it; None where it was decoded before (the full-resolution frame is not kept): one
+    decoding for both."""
     with _lock:
+        full = _FULL.pop(frame.sha256, None)
         known = frame.sha256 in _CHECK_FRAMES
     if known:
         check_frame(session, frame)
-        return None
+        return full
     checked, full = _decode_for_checks(session, frame)
     kept(_CHECK_FRAMES, frame.sha256, lambda: checked)
     return full

@@ -10,10 +10,7 @@ from __future__ import annotations
 import argparse
 
 from rigkit.commands import finite, output_folder
-
-# rigkit.experiments.table1.METHODS, repeated here so that --help does not import the
-# experiments (tests/commands/test_loading.py holds the copy to the original).
-METHODS = ("rigkit", "paper", "loop-zhang", "sfm-mvs")
+from rigkit.experiments.defaults import METHODS
 
 _EPILOG = """\
 examples:

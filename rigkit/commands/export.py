@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from rigkit.commands import count, finite, output_folder
+from rigkit.export.defaults import VERTICAL_ELLIPSOIDAL, VERTICAL_RECORDED
 
 EXAMPLE = """examples:
   rigkit export capture/example --out out/example-cloud
@@ -56,11 +57,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--crs", metavar="EPSG:CODE",
                    help="the map's projected CRS, any PROJ knows (e.g. EPSG:2056 for Swiss "
                    "LV95; default: the tripod's WGS 84 UTM zone)")
-    p.add_argument("--vertical", metavar="recorded|ellipsoidal|EPSG:CODE",
-                   default="recorded",
-                   help="what heights are: recorded (default: as the tripod's height was "
-                   "recorded, e.g. a GPS's mean sea level), ellipsoidal, or a vertical CRS "
-                   "PROJ can transform to (e.g. EPSG:5728 LN02; its geoid grid needed)")
+    p.add_argument("--vertical", metavar=f"{VERTICAL_RECORDED}|{VERTICAL_ELLIPSOIDAL}|EPSG:CODE",
+                   default=VERTICAL_RECORDED,
+                   help=f"what heights are: {VERTICAL_RECORDED} (default: as the tripod's "
+                   "height was recorded, e.g. a GPS's mean sea level), "
+                   f"{VERTICAL_ELLIPSOIDAL}, or a vertical CRS PROJ can transform to (e.g. "
+                   "EPSG:5728 LN02; its geoid grid needed)")
     p.add_argument("--cell", type=finite, metavar="SIZE",
                    help="the DSM's cell size in the CRS's unit (default: from the points' "
                    "spacing)")

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+
+from rigkit.core.progress import Progress
+from rigkit.errors import InputError
+from rigkit.export import MapRequest, export_path, parse_formats
+from rigkit.export.georef import MAX_RESIDUAL_DEG
+from rigkit.export.run import Exported
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.core.progress import Progress
-    from rigkit.errors import InputError
-    from rigkit.export import MapRequest, export_path, parse_formats
-    from rigkit.export.georef import MAX_RESIDUAL_DEG
-
     formats = parse_formats(args.format)
     residual = MAX_RESIDUAL_DEG if args.max_residual_deg is None else args.max_residual_deg
     if not 0 < residual <= 180:
@@ -27,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def summary(done: Any) -> list[str]:
+def summary(done: Exported) -> list[str]:
     """What an export wrote, where, in which frame; the orientation fit, heights and
     transformation when georeferenced; why not on the map where ``auto`` fell back."""
     filled = "" if done.filled is None else f" ({done.filled} filled from a neighbour)"

@@ -6,14 +6,20 @@ import argparse
 import sys
 from pathlib import Path
 
+from rigkit.capture.comparisons import csv_text
+from rigkit.capture.session import check_outside
+from rigkit.core.outputs import check_output_folder, check_outputs, write_outputs
+from rigkit.core.tables import visible
+from rigkit.errors import InputError
+from rigkit.reporting.plots import FORMATS, plot_error_vs_range, plot_estimate_vs_laser, render
+from rigkit.reporting.scale import calibration_rows, session_scale_note
+from rigkit.reporting.summary import collect, format_text, summarize
+
 #: The plots, by file stem; each is written in every --format.
 PLOTS = ("estimate_vs_laser", "error_vs_range")
 
 
 def _formats(text: str) -> list[str]:
-    from rigkit.errors import InputError
-    from rigkit.reporting.plots import FORMATS
-
     formats = list(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
     unknown = [f for f in formats if f not in FORMATS]
     if unknown or not formats:
@@ -22,13 +28,6 @@ def _formats(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.capture.comparisons import csv_text
-    from rigkit.core.tables import visible
-    from rigkit.errors import InputError
-    from rigkit.reporting.plots import plot_error_vs_range, plot_estimate_vs_laser, render
-    from rigkit.reporting.scale import calibration_rows, session_scale_note
-    from rigkit.reporting.summary import collect, format_text, summarize
-
     if not args.sessions:
         raise InputError("no session folders given (e.g. rigkit report capture/field-1 --out DIR)")
     formats = _formats(args.format)
@@ -67,9 +66,6 @@ def _check_out(out: Path, sessions: list[Path], formats: list[str]) -> None:
     """--out never inside a session it reports (its comparisons.csv would replace the
     session's log), and no file it writes one rigkit did not write
     (:mod:`rigkit.core.outputs`), said before the work."""
-    from rigkit.capture.session import check_outside
-    from rigkit.core.outputs import check_output_folder, check_outputs
-
     check_output_folder(out, "--out")
     check_outside(out / "comparisons.csv", sessions, f"--out {out}")
     check_outputs(out, _names(formats), "--out")
@@ -78,9 +74,6 @@ def _check_out(out: Path, sessions: list[Path], formats: list[str]) -> None:
 def _write_all(out: Path, files: dict[str, str | bytes]) -> None:
     """All report files at once (:func:`rigkit.core.outputs.write_outputs`); a folder
     that cannot be created or written is a one-line error naming --out."""
-    from rigkit.core.outputs import write_outputs
-    from rigkit.errors import InputError
-
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

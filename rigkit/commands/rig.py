@@ -6,13 +6,15 @@ import argparse
 from pathlib import Path
 
 from rigkit.commands import count, finite, output_file
+from rigkit.rig.defaults import (
+    CRITICAL_W,
+    DISPARITY_ERROR_PX,
+    LASER_ACCURACY_M,
+    MAX_RANGE_M,
+    SHIMMER_PX,
+)
 
 DEFAULT_RANGE_M = 300.0
-# The budget's defaults, repeated here so that --help does not import the pipeline they
-# come from: rigkit.rig.budget.DISPARITY_ERROR_PX (the pipeline's stereo_noise_px) and
-# rigkit.rig.bursts.SHIMMER_PX (tests/commands/test_loading.py holds them equal).
-DISPARITY_ERROR_PX = 0.25
-SHIMMER_PX = 0.3
 
 _RIG_EPILOG = """\
 example:
@@ -112,7 +114,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     _register_calibrate(sub)
 
 
-_CALIBRATE_EPILOG = """\
+_CALIBRATE_EPILOG = f"""\
 examples:
   rigkit rig calibrate capture/ridge-0412 --out rigs/ridge-0412.yaml   # taped anew
   rigkit rig calibrate capture/van-* --out rigs/van-2026.yaml          # one fixed rig
@@ -123,7 +125,7 @@ Adjusts C_lb (the depth maps' scale), and f*C_lr where the targets determine it 
 than the profile does, from each session's current run (process them first): every
 target a row weighted by its laser accuracy and its window median's measured scatter,
 the profile's tolerances rows too (the tape's, the lens spec's). A blunder (standardised
-residual beyond 3.29) is named and left out; one that cannot be told from another row,
+residual beyond {CRITICAL_W:g}) is named and left out; one that cannot be told from another row,
 or a profile value beyond its tolerance, stops it (--beyond-tolerance lets the lasers
 overrule the profile). Each target is checked by the fit without it and its twins;
 held-out targets and check sessions only check it. Then: rigkit session set-rig SESSION
@@ -147,7 +149,8 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                            help="processed session folders of one rig")
     calibrate.add_argument("--out", type=output_file, required=True, help="the profile to write")
     calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
-                           help="one laser reading's one-sigma error, m (default 0.3)")
+                           help="one laser reading's one-sigma error, m (default "
+                                f"{LASER_ACCURACY_M:g})")
     calibrate.add_argument("--hold-out", action="append", default=[], metavar="TARGET",
                            help="a target (T3, or SESSION/T3) kept out of the fit and checked "
                                 "against it (repeatable)")
@@ -179,10 +182,6 @@ def _non_negative_float(text: str) -> float:
 
 def _float(text: str) -> float:
     return finite(text)
-
-
-MAX_RANGE_M = 100_000.0
-"""The longest range ``--range`` takes (as a profile's ``nominal_range_m``)."""
 
 
 def _range_m(text: str) -> float:

@@ -23,14 +23,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
     from rigkit.core.files import check_creatable
     from rigkit.core.outputs import check_output_file, write_outputs
     from rigkit.errors import InputError
-    from rigkit.reporting.scale import (
-        LASER_ACCURACY_M,
-        calibration_record,
-        format_calibration,
-        plain,
-        read_sessions,
-    )
-    from rigkit.rig.calibration import calibrated_profile, fit_scale
+    from rigkit.reporting.calibration_report import calibration_record, format_calibration
+    from rigkit.reporting.scale import plain, read_sessions
+    from rigkit.rig.calibrated import calibrated_profile
+    from rigkit.rig.calibration import fit_scale
+    from rigkit.rig.defaults import LASER_ACCURACY_M
     from rigkit.rig.profile import dump_rig
 
     out = args.out

@@ -5,12 +5,22 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+
+from rigkit.capture import load_session, utc_now
+from rigkit.capture.positioning import set_rig, set_tripod_position
+from rigkit.capture.tripod import (
+    HEIGHT_GPS,
+    HEIGHT_UNKNOWN,
+    TripodPosition,
+    check_height_datum,
+)
+from rigkit.errors import InputError
+from rigkit.export.crs import utm_epsg, vertical_crs
+from rigkit.rangefinder.framing import escape_bytes
+from rigkit.rangefinder.gps import mean_position, open_gps
 
 
 def run_set_rig(args: argparse.Namespace) -> int:
-    from rigkit.capture.positioning import set_rig
-
     session = set_rig(args.session, args.rig)
     lb = session.rig().baseline_lb
     print(f"{session.path}: rig {session.rig().name} (C_lb {lb.value_m:.4f} +- "
@@ -20,11 +30,6 @@ def run_set_rig(args: argparse.Namespace) -> int:
 
 
 def run_set_position(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.positioning import set_tripod_position
-    from rigkit.errors import InputError
-    from rigkit.export.crs import utm_epsg
-
     typed = [args.lat, args.lon, args.height_m]
     if args.gps is not None and any(v is not None for v in [*typed, args.height_datum]):
         raise InputError("give --lat, --lon and --height-m (and --height-datum), or --gps, "
@@ -47,11 +52,7 @@ def run_set_position(args: argparse.Namespace) -> int:
     return 0
 
 
-def _typed(args: argparse.Namespace) -> Any:
-    from rigkit.capture import utc_now
-    from rigkit.capture.tripod import HEIGHT_UNKNOWN, TripodPosition, check_height_datum
-    from rigkit.export.crs import vertical_crs
-
+def _typed(args: argparse.Namespace) -> TripodPosition:
     datum = HEIGHT_UNKNOWN
     if args.height_datum is not None:
         datum = check_height_datum(args.height_datum)
@@ -61,12 +62,7 @@ def _typed(args: argparse.Namespace) -> Any:
                           height_datum=datum)
 
 
-def _from_gps(args: argparse.Namespace) -> Any:
-    from rigkit.capture import utc_now
-    from rigkit.capture.tripod import HEIGHT_GPS, TripodPosition
-    from rigkit.rangefinder.framing import escape_bytes
-    from rigkit.rangefinder.gps import mean_position, open_gps
-
+def _from_gps(args: argparse.Namespace) -> TripodPosition:
     fixes = []
     with open_gps(args.gps, baud=args.baud, timeout=args.timeout) as gps:
         for _ in range(args.fixes):

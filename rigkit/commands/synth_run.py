@@ -5,13 +5,22 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rigkit.capture.tripod import GEOID_RANGE_M, check_direction, check_position
+from rigkit.commands import parse_distortion
+from rigkit.core.progress import Progress
+from rigkit.errors import InputError
+from rigkit.rig import load_rig
+from rigkit.synth import SynthParams, field_params, generate_scene, write_scene
+from rigkit.synth.io import VIEWS
+from rigkit.synth.placement import Placement
+from rigkit.synth.scene import Scene
+
 
 def _rig_settings(path: Path) -> dict[str, float]:
-    from rigkit.rig import load_rig
-
     rig = load_rig(path)
     w, h = rig.image_size
     side, up = rig.back_offset_m or (0.0, 0.0)
@@ -27,10 +36,6 @@ def _rig_settings(path: Path) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.core.progress import Progress
-    from rigkit.synth import SynthParams, generate_scene
-    from rigkit.synth.io import VIEWS
-
     d = SynthParams()
     settings: dict[str, float] = {
         "width": d.width,
@@ -92,16 +97,11 @@ _CONDITION_FLAGS = {
 }
 
 
-def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
+def _field_conditions(args: argparse.Namespace, params: SynthParams) -> SynthParams:
     """``params`` with --field's preset and the field and world flags given applied."""
-    from dataclasses import replace
-
-    from rigkit.commands import parse_distortion
-    from rigkit.synth import field_params
-
     if args.field:
         params = field_params(params)
-    changes: dict[str, Any] = {
+    changes: dict[str, Any] = {  # flags of several types, checked by SynthParams
         name: getattr(args, flag) for flag, name in _CONDITION_FLAGS.items()
         if getattr(args, flag) is not None
     }
@@ -110,13 +110,9 @@ def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
     return replace(params, **changes)
 
 
-def _placement(args: argparse.Namespace) -> Any:
+def _placement(args: argparse.Namespace) -> Placement | None:
     """--position and --pointing as a placement on the map (None without --position);
     InputError naming the option whose numbers are not."""
-    from rigkit.capture.tripod import GEOID_RANGE_M, check_direction, check_position
-    from rigkit.errors import InputError
-    from rigkit.synth.placement import Placement
-
     if args.position is None:
         return None
     position = _numbers(args.position, "--position", (3, 4))
@@ -132,8 +128,6 @@ def _placement(args: argparse.Namespace) -> Any:
 
 
 def _numbers(text: str, option: str, counts: tuple[int, ...]) -> list[float]:
-    from rigkit.errors import InputError
-
     try:
         values = [float(part) for part in text.split(",")]
     except ValueError:
@@ -148,11 +142,8 @@ MAX_TARGETS = 1000
 """The most laser targets a synthetic session gets (each is a line of session.yaml)."""
 
 
-def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
+def _write(args: argparse.Namespace, scene: Scene, progress: Progress) -> str:
     """Render ``scene`` as a scene folder or a session; what was written, in words."""
-    from rigkit.errors import InputError
-    from rigkit.synth import write_scene
-
     if args.session:
         from rigkit.synth.session import write_synthetic_session
 

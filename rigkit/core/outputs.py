@@ -52,11 +52,11 @@ LEDGER_LIMIT = 4 << 20
 _FORMAT = "rigkit-outputs/1"
 
 SESSION_FILE = "session.yaml"
-"""A folder holding this is a capture session (:mod:`rigkit.capture.session`)."""
+"""A folder holding this is a capture session (:mod:`rigkit.capture.model`)."""
 SESSION_KEPT = frozenset({SESSION_FILE, "raw", "derived", "results", "history.log",
                           "comparisons.csv"})
 """The entries of a session no output may be or be inside (hidden ones too): what the
-session commands alone write. :mod:`rigkit.capture.session` names the same entries."""
+session commands alone write. :mod:`rigkit.capture.model` names the same entries."""
 
 
 def session_part(path: Path) -> tuple[Path, tuple[str, ...]] | None:

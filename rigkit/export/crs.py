@@ -42,9 +42,8 @@ from rigkit.capture.tripod import (
     TripodPosition,
 )
 from rigkit.errors import InputError
+from rigkit.export.defaults import VERTICAL_ELLIPSOIDAL, VERTICAL_RECORDED
 
-VERTICAL_RECORDED = "recorded"
-VERTICAL_ELLIPSOIDAL = "ellipsoidal"
 WGS84_3D = "EPSG:4979"
 """WGS 84 longitude, latitude (degrees) and ellipsoidal height (m): what georeferencing
 hands to PROJ."""

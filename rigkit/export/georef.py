@@ -36,10 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from rigkit.capture.session import Session
+from rigkit.capture.model import Session
 from rigkit.capture.tripod import TripodPosition, enu_direction
 from rigkit.errors import InputError
-from rigkit.export.crs import VERTICAL_RECORDED, MapCrs, map_crs
+from rigkit.export.crs import MapCrs, map_crs
+from rigkit.export.defaults import VERTICAL_RECORDED
 from rigkit.export.source import DepthMap
 
 MAX_RESIDUAL_DEG = 1.5

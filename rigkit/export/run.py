@@ -33,7 +33,7 @@ from rigkit.core.files import check_writable_folder
 from rigkit.core.outputs import check_output_folder, check_outputs, staged_outputs
 from rigkit.core.signals import terminate_as_interrupt
 from rigkit.errors import InputError
-from rigkit.export.crs import VERTICAL_RECORDED
+from rigkit.export.defaults import VERTICAL_RECORDED
 from rigkit.export.dsm import NODATA, Footprint, Gridder, write_dsm
 from rigkit.export.georef import MAX_RESIDUAL_DEG, Georeference, NotOnMap, georeference
 from rigkit.export.las import LasWriter, las_header

@@ -11,22 +11,20 @@ marked as filled, and the metadata says that it is not known).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 
-from rigkit.capture.actions import stale_results
-from rigkit.capture.imagesize import MAX_FRAME_PIXELS
-from rigkit.capture.session import RESULTS_DIR, Session, is_session, load_session
+from rigkit.capture.model import Session
+from rigkit.capture.results import RunFiles, RunRecord, read_record, stale_results
+from rigkit.capture.session import is_session, load_session
 from rigkit.core.safefs import check_regular, read_input, real_folder
 from rigkit.errors import InputError
-from rigkit.export.runinfo import RunInfo, run_info
+from rigkit.export.runinfo import RunInfo
+from rigkit.imagefile.imagesize import MAX_FRAME_BYTES, MAX_FRAME_PIXELS
 from rigkit.pipeline.estimate import FLAG_FILLED
-from rigkit.pipeline.images import MAX_IMAGE_BYTES
 from rigkit.pipeline.lens import Lens
 
 
@@ -91,46 +89,51 @@ def open_depth(path: Path) -> DepthMap:
 
 def session_depth(path: Path) -> DepthMap:
     """The latest ``rigkit process`` results of the session at ``path``. Read without
-    the session's lock (results are swapped in whole); the run id is read before and
-    after, so a run swapped in meanwhile is noticed rather than mixed."""
+    the session's lock (results are swapped in whole); the run's record is read before
+    and after, so a run swapped in meanwhile is noticed rather than mixed. The depth map
+    is back-projected through the lens the run used (its record's)."""
     if not is_session(path):
         raise InputError(f"{path}: not a session folder (no session.yaml)")
     session = load_session(path)
-    results = path / RESULTS_DIR
-    if not (results / "depth.npy").is_file():
+    files = RunFiles.of_session(path)
+    if not files.depth.is_file():
         raise InputError(f"{path}: no results yet; run `rigkit process {path}` first")
-    real_folder(results)  # the session's own: no link leads the export elsewhere
-    for name in ("depth.npy", "sigma.npy", "grey.png", "depth.json"):
-        check_regular(results / name)
-    if (results / "flags.npy").exists():
-        check_regular(results / "flags.npy")
+    real_folder(files.depth.parent)  # the session's own: no link leads the export elsewhere
+    for name in (files.depth, files.sigma, files.grey, files.record):
+        check_regular(name)
+    if files.flags.exists():
+        check_regular(files.flags)
     stale = stale_results(session, with_targets=False)  # a depth map of other frames or rig
     if stale is not None:
         raise InputError(f"{path}: {stale} (rigkit process {path}) before exporting")
-    meta = _meta(results / "depth.json")
-    arrays = _maps(results / "depth.npy", results / "sigma.npy", results / "grey.png",
-                   f"rigkit process {path}")
-    flags = _flags(results / "flags.npy", arrays[0].shape)
-    if _meta(results / "depth.json").get("run_id") != meta.get("run_id"):
+    record = read_record(files.record)
+    depth_map = _depth_map(files, record, f"rigkit process {path}", session.name, session)
+    if read_record(files.record).run_id != record.run_id:
         raise InputError(f"{path}: results were replaced while being read (a run just "
                          "finished); export again")
-    size = arrays[0].shape[1], arrays[0].shape[0]
-    run = run_info(meta, size, results / "depth.json", session.rig())
-    return DepthMap(*arrays, name=session.name, run=run, flags=flags, session=session)
+    return depth_map
 
 
 def file_depth(path: Path) -> DepthMap:
     """``rigkit depth``'s ``D.npy`` with ``D.sigma.npy``, ``D.grey.png``, ``D.flags.npy``
-    and ``D.json`` beside it; the run (and its lens) from ``D.json``
-    (:func:`rigkit.export.runinfo.run_info`)."""
-    stem = path.with_suffix("")
-    meta = _meta(stem.with_suffix(".json"))
-    arrays = _maps(path, Path(f"{stem}.sigma.npy"), Path(f"{stem}.grey.png"),
-                   "rigkit depth ... --out " + str(path))
+    and ``D.json`` beside it; the run (and its lens) from ``D.json``, its record."""
+    files = RunFiles.beside(path)
+    record = read_record(files.record)
+    return _depth_map(files, record, f"rigkit depth ... --out {path}",
+                      path.with_suffix("").name)
+
+
+def _depth_map(files: RunFiles, record: RunRecord, remake: str, name: str,
+               session: Session | None = None) -> DepthMap:
+    """The run's maps with its record's lens (:class:`rigkit.export.runinfo.RunInfo`);
+    InputError where the maps are not of the size the record says the run made."""
+    arrays = _maps(files, remake)
     height, width = arrays[0].shape
-    run = run_info(meta, (width, height), stem.with_suffix(".json"))
-    flags = _flags(Path(f"{stem}.flags.npy"), arrays[0].shape)
-    return DepthMap(*arrays, name=stem.name, run=run, flags=flags)
+    if (width, height) != record.image_size_px:
+        raise InputError(f"{files.depth}: the depth map is {width}x{height} px, its record "
+                         f"says {record.image_size_px[0]}x{record.image_size_px[1]} px")
+    flags = _flags(files.flags, arrays[0].shape)
+    return DepthMap(*arrays, name=name, run=RunInfo.of(record), flags=flags, session=session)
 
 
 def _flags(path: Path, shape: tuple[int, ...]) -> np.ndarray | None:
@@ -143,27 +146,11 @@ def _flags(path: Path, shape: tuple[int, ...]) -> np.ndarray | None:
     return flags
 
 
-META_LIMIT = 16 << 20
-"""The largest ``D.json`` read, bytes (as ``results/depth.json``)."""
-
-
-def _meta(path: Path) -> dict[str, Any]:
-    if not path.exists():
-        raise InputError(f"{path}: missing (written with the depth map)")
-    try:  # never a FIFO; no more than a run's metadata can be
-        data = json.loads(read_input(path, META_LIMIT, "a depth map's metadata"))
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read ({exc})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: not a depth map's metadata")
-    return data
-
-
-def _maps(depth_path: Path, sigma_path: Path, grey_path: Path,
-          remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _maps(files: RunFiles, remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Depth and sigma memory-mapped, grey read; all (H, W) and of one size, no larger
     than the largest frame (a map beyond it is refused before it is read)."""
-    depth, sigma = (_npy(p) for p in (depth_path, sigma_path))
+    depth_path, grey_path = files.depth, files.grey
+    depth, sigma = (_npy(p) for p in (files.depth, files.sigma))
     if depth.size > MAX_FRAME_PIXELS:
         raise InputError(f"{depth_path}: a {'x'.join(map(str, depth.shape[::-1]))} map, "
                          f"beyond the {MAX_FRAME_PIXELS / 1e6:.0f} MP of the largest frame")
@@ -171,7 +158,7 @@ def _maps(depth_path: Path, sigma_path: Path, grey_path: Path,
         raise InputError(f"{grey_path}: missing (written since rigkit records the grey "
                          f"values for export); run `{remake}` again")
     # read by Python (no file name reaches OpenCV), never a FIFO, at most a frame's size
-    data = np.frombuffer(read_input(grey_path, MAX_IMAGE_BYTES, "a grey image"), np.uint8)
+    data = np.frombuffer(read_input(grey_path, MAX_FRAME_BYTES, "a grey image"), np.uint8)
     grey = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
     if grey is None:
         raise InputError(f"{grey_path}: cannot read the image")

@@ -30,6 +30,7 @@ from types import TracebackType
 from urllib.parse import parse_qsl, urlsplit
 
 from rigkit.errors import InputError
+from rigkit.rangefinder.defaults import SIM_OPTIONS
 from rigkit.rangefinder.gps import encode_gga
 from rigkit.rangefinder.trupulse import TRUPULSE_UNITS, encode_trupulse_hv, trupulse_sentence
 from rigkit.rangefinder.vectronix import (
@@ -38,33 +39,6 @@ from rigkit.rangefinder.vectronix import (
     vectronix_frame,
     vectronix_range_field,
 )
-
-SIM_OPTIONS: dict[str, str] = {
-    "distance": "true slope distance to the target in metres (default 302)",
-    "lat": "gps: latitude in degrees, north positive (default 46.5)",
-    "lon": "gps: longitude in degrees, east positive (default 7.5)",
-    "height": "gps: height above mean sea level in metres (default 500)",
-    "geoid": "gps: the geoid's height above the WGS 84 ellipsoid in metres, GGA's geoid "
-    "separation (default 47.3)",
-    "inclination": "trupulse: inclination in degrees, positive up (default 1.2)",
-    "azimuth": "trupulse: azimuth in degrees (default 47.3)",
-    "unit": "trupulse: unit the device sends, M, F or Y (default M)",
-    "interval": "trupulse: seconds between the simulated user's shots, 0 = only on $GO; "
-    "gps: seconds between fixes (default 1)",
-    "noise": "1-sigma range noise in metres; gps: 1-sigma horizontal position noise, m "
-    "(default 0)",
-    "low_quality": "trupulse: probability a shot is flagged low-quality (default 0)",
-    "miss": "probability a shot finds no target (default 0)",
-    "other": "trupulse, gps: probability of another sentence before a shot or fix "
-    "(default 0)",
-    "nofix": "gps: GGA sentences without a fix before the first fix (default 0)",
-    "garbage": "probability of line noise and a cut-off sentence before a frame (default 0)",
-    "bad_checksum": "probability a frame is sent with a wrong checksum (default 0)",
-    "silent": "1 = the device never sends anything (default 0)",
-    "disconnect_after": "pull the cable halfway through frame N+1 (default: never)",
-    "seed": "random seed (default 0)",
-}
-"""Simulator URL options (``sim://<device>?key=value&...``) and what they do."""
 
 GEOID_LIMIT_M = 150.0
 """The geoid lies within about 110 m of the WGS 84 ellipsoid everywhere."""

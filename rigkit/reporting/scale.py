@@ -1,8 +1,8 @@
 """What a session's laser targets say of the rig's scale, in the words every front end
 shows (``rigkit process``, ``rigkit report``, ``session show``, the field TUI), where the
 scale came from (taped, or laser-calibrated: from which sessions and when), and the
-sessions and targets that ``rigkit rig calibrate`` fits (:mod:`rigkit.rig.calibration`)
-with its report.
+sessions and targets that ``rigkit rig calibrate`` fits (:mod:`rigkit.rig.calibration`;
+its report: :mod:`rigkit.reporting.calibration_report`).
 
 A target enters with its laser range (the median of its readings; one sigma: the
 device's accuracy and the readings' scatter), its estimated range and the part of that
@@ -12,50 +12,28 @@ target of a run, and is what the fit measures.
 A calibration reads each session's current run, the one in its ``results/`` (under the
 session's lock, after the repair every command makes: a run stopped between its results
 and its log is finished first), never the log's history: the rows of
-``results/comparisons.csv`` and the reference of ``results/depth.json``
-(:func:`rigkit.capture.session.run_metadata`, read in one place here, ``_depth_json``).
+``results/comparisons.csv`` and the reference of its record, ``results/depth.json``
+(:func:`rigkit.capture.results.session_record`).
 """
 
 from __future__ import annotations
 
 import hashlib
-import io
 import math
 import os
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
-import numpy as np
-
-from rigkit.capture import RESULTS_DIR, Session
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
-from rigkit.capture.imagesize import MAX_FRAME_PIXELS
-from rigkit.capture.session import POSITIONS, run_metadata, utc_now
-from rigkit.core.safefs import read_regular
-from rigkit.core.tables import render_table, visible
+from rigkit.capture.model import POSITIONS, Session
+from rigkit.capture.results import RESULTS_DIR, RunRecord, session_record
+from rigkit.core.tables import visible
 from rigkit.errors import InputError
-from rigkit.rig.calibration import (
-    GOAL_PCT,
-    MIN_CHECKED,
-    PRIOR_CONSTANT,
-    PRIOR_SCALE,
-    PRIOR_SHAPE,
-    Check,
-    LaserTarget,
-    ScaleFit,
-    fit_scale,
-)
-from rigkit.rig.profile import Calibration, CalibrationSource, RigProfile
-
-LASER_ACCURACY_M = 0.3
-"""One laser reading's one-sigma error, m, where nothing better is known: a handheld
-rangefinder's stated accuracy on a good target (a TruPulse's +-0.3 m)."""
-
-
-DEPTH_LIMIT = 4 * MAX_FRAME_PIXELS + (1 << 16)
-"""The largest ``depth.npy`` read, bytes: float32 at the largest frame, and its header."""
+from rigkit.rig.adjustment import LaserTarget
+from rigkit.rig.calibration import ScaleFit, fit_scale
+from rigkit.rig.defaults import LASER_ACCURACY_M
+from rigkit.rig.profile import RigProfile
 
 SCALE_NOTICE = 0.001
 """A scale the lasers put further than this (and than 2 sigma) from the profile's is
@@ -73,31 +51,19 @@ class RunReference:
     offset_fraction: float
     offset_floor: float = 0.0
 
-
-def _depth_json(folder: Path) -> dict[str, Any] | None:
-    """The folder's ``results/depth.json`` (None where none is readable): the one place
-    this module reads it (:func:`rigkit.capture.session.run_metadata`)."""
-    return run_metadata(folder)
+    @classmethod
+    def of(cls, record: RunRecord) -> RunReference:
+        """A run's reference from its record (NaN median without a depth; an unknown
+        offset share as 0; no floor)."""
+        median = record.median_depth_m
+        return cls(math.nan if median is None else median, record.offset_depth_fraction or 0.0)
 
 
 def run_reference(session_path: Path) -> RunReference | None:
-    """The latest run's reference (None where the session has no readable run)."""
-    results = session_path / RESULTS_DIR
-    meta = _depth_json(session_path)
-    if meta is None:
-        return None
-    median = meta.get("median_depth_m")
-    if not isinstance(median, int | float):  # a run before depth.json recorded it
-        try:
-            depth = np.load(io.BytesIO(read_regular(results / "depth.npy", DEPTH_LIMIT,
-                                                    "a depth map")))
-        except (OSError, ValueError, InputError):
-            return None
-        known = depth[np.isfinite(depth)]
-        median = float(np.median(known)) if known.size else math.nan
-    fraction = meta.get("offset_depth_error_fraction")
-    return RunReference(float(median), float(fraction) if isinstance(
-        fraction, int | float) else 0.0)
+    """The latest run's reference: None where the session has none; InputError where
+    its record is refused (:func:`rigkit.capture.results.read_record`)."""
+    record = session_record(session_path)
+    return None if record is None else RunReference.of(record)
 
 
 def laser_targets(rows: Sequence[Comparison], reference: RunReference, run: str,
@@ -250,7 +216,7 @@ def session_scale_note(path: Path) -> str:
         rows = current_rows(path)
     except InputError:
         return ""
-    profile = session.rig()
+    profile = session.rig()  # a refused record of the run: InputError, one line
     note = run_scale_note(rows, profile, run_reference(path),
                           calibration_targets(profile, session)) if rows else ""
     return f"{note}; scale {scale_source(profile)}" if note else f"scale {scale_source(profile)}"
@@ -269,7 +235,11 @@ def current_rows(folder: Path, torn: list[str] | None = None) -> list[Comparison
     if not log.is_file():
         return []
     rows = read_rows(log, torn)
-    run = (_depth_json(folder) or {}).get("run_id")
+    try:
+        record = session_record(folder)
+    except InputError:  # a record refused names no run: the log's newest
+        record = None
+    run = record.run_id if record is not None else None
     mine = [row for row in rows if row.run_id == run]
     return mine if mine else latest_run(rows)
 
@@ -387,7 +357,8 @@ def read_run(path: Path) -> SessionRun:
     """A session's current run, read under its lock after repairing what an interrupted
     command left (:func:`rigkit.capture.actions.changing`); InputError where it is not
     processed, its results no longer show it, or they hold no laser target."""
-    from rigkit.capture.actions import changing, stale_results
+    from rigkit.capture.actions import changing
+    from rigkit.capture.results import stale_results
     from rigkit.capture.session import load_session
 
     load_session(path)  # a clear error for a folder that is no session, before locking
@@ -395,16 +366,16 @@ def read_run(path: Path) -> SessionRun:
         stale = stale_results(session)
         if stale:
             raise InputError(f"{session.path}: {stale} (rigkit process {session.path})")
-        meta = _depth_json(session.path)
-        reference = run_reference(session.path)
+        record = session_record(session.path)
         rows = current_rows(session.path)
-    run_id = (meta or {}).get("run_id")
-    if reference is None or not rows or not isinstance(run_id, str):
+    run_id = record.run_id if record is not None else None
+    if record is None or not rows or run_id is None:
         raise InputError(f"{session.path}: not processed with laser targets yet "
                          f"(rigkit process {session.path})")
     if any(row.run_id != run_id for row in rows):
         raise InputError(f"{session.path}: results/{LOG_NAME} is not the run of "
                          f"results/depth.json ({run_id}); process it again")
+    reference = RunReference.of(record)
     reference = replace(reference, offset_floor=offset_floor(session,
                                                             reference.median_depth_m))
     return SessionRun(session, plain(session.name), frames_fingerprint(session), run_id,
@@ -438,210 +409,3 @@ def _held(targets: Sequence[LaserTarget], names: Sequence[str], runs: int
                              f"{found[0].name}")
         held += found
     return held
-
-
-# ------------------------------------------------------------------ the report
-
-
-def calibration_record(fit: ScaleFit, given: CalibrationInput) -> Calibration:
-    """The profile's provenance for this fit (what it changed is filled in by
-    :func:`rigkit.rig.calibration.calibrated_profile`)."""
-    sources = []
-    for run in given.runs:
-        mine = [t for t in fit.used if t.run == run.fingerprint]
-        sources.append(CalibrationSource(
-            name=run.label, path=plain(str(run.session.path.resolve())),
-            frames_sha256=run.fingerprint, run_id=plain(run.run_id), taken=run.taken,
-            used={_short(t): t.pixel or (math.nan, math.nan) for t in mine},
-            held_out=tuple(_short(c.target) for c in fit.held_out
-                           if c.target.run == run.fingerprint),
-            rejected=tuple(_short(r.target) for r in fit.rejected
-                           if r.target.run == run.fingerprint)))
-    return Calibration(
-        date_utc=utc_now(), from_profile=plain(given.profile.name), sessions=tuple(sources),
-        reference_depth_m=fit.reference_m, checks=_checks_line(fit), sigma0=fit.sigma0,
-        dof=fit.dof)
-
-
-def _short(t: LaserTarget) -> str:
-    """A target's own name, without its session's."""
-    return t.name.rsplit("/", 1)[-1]
-
-
-def _checks_line(fit: ScaleFit) -> str:
-    parts = []
-    if fit.checks:
-        within = sum(c.within for c in fit.checks)
-        parts.append(f"leave-one-out: {within}/{len(fit.checks)} targets within "
-                     f"{GOAL_PCT:g} %")
-    else:
-        parts.append(f"unchecked: {len(fit.used)} target(s), fewer than {MIN_CHECKED}")
-    if fit.held_out:
-        within = sum(c.within for c in fit.held_out)
-        parts.append(f"held out: {within}/{len(fit.held_out)} within {GOAL_PCT:g} %")
-    return "; ".join(parts)
-
-
-def format_calibration(fit: ScaleFit, given: CalibrationInput,
-                       changes: Sequence[str] = (), kept: Sequence[str] = ()) -> str:
-    """The calibration report (docs/rig-profiles.md, "The calibration report"): the rig,
-    the sessions, the a-priori and fitted values, the test of unit weight, each row's
-    residual, what was left out and why, the leave-one-out and held-out checks."""
-    profile = given.profile
-    lines = _rig_lines(profile) + _session_lines(fit, given)
-    lines += _value_lines(fit, profile)
-    lines += _test_lines(fit)
-    lines += _residual_lines(fit)
-    lines += _check_lines(fit)
-    lines += _laser_lines(fit, profile)
-    if changes or kept:
-        lines.append("written:")
-        lines += [f"  {line}" for line in (*changes, *kept)]
-    return "\n".join(lines) + "\n"
-
-
-def _rig_lines(profile: RigProfile) -> list[str]:
-    camera = profile.cameras["left"]
-    lines = [f"rig       {plain(profile.name)} ({plain(camera.model)}); scale "
-             f"{scale_source(profile)}"]
-    note = plain(profile.notes.strip().splitlines()[0]) if profile.notes.strip() else ""
-    if note:
-        lines.append(f"          notes: {note}")
-    return lines
-
-
-def _session_lines(fit: ScaleFit, given: CalibrationInput) -> list[str]:
-    lines = []
-    for run in given.runs:
-        count = sum(t.run == run.fingerprint for t in fit.used)
-        lines.append(f"session   {run.label}: run {plain(run.run_id)}, frames taken "
-                     f"{run.taken}, {count} target(s) fitted, reference depth "
-                     f"{run.reference.median_depth_m:.1f} m")
-    for run in given.check_runs:
-        lines.append(f"check     {run.label}: run {plain(run.run_id)}, frames taken "
-                     f"{run.taken}: its targets only check the fit")
-    lines += [f"          {note}" for note in given.notes]
-    for kept, copies in fit.duplicates:
-        lines.append(f"          {', '.join(c.name for c in copies)}: the same pixel and "
-                     f"reading as {kept.name}: counted once")
-    spread = [t.laser_m for t in fit.used]
-    lines.append(f"fitted    {len(fit.used)} laser target(s), {min(spread):.1f}-"
-                 f"{max(spread):.1f} m; the scale pinned at {fit.reference_m:.1f} m")
-    return lines
-
-
-def _value_lines(fit: ScaleFit, profile: RigProfile) -> list[str]:
-    """A-priori against fitted values, one sigma each."""
-    lb, lr = profile.baseline_lb, profile.baseline_lr
-    rows = [["C_lb", f"{lb.value_m:.4f} +- {lb.tolerance_m:.4f} m",
-             f"{lb.value_m * fit.scale:.4f} +- {lb.value_m * fit.scale_sigma:.4f} m",
-             f"the depth maps' scale to +-{100 * fit.map_scale_sigma:.3f} %"]]
-    prior_shape = math.hypot(profile.focal_tolerance, lr.relative_tolerance)
-    if fit.shape_fitted:
-        rows.append(["f*C_lr", f"x 1 +- {prior_shape:.4f}",
-                     f"x {fit.shape:.4f} +- {fit.shape_sigma:.4f}",
-                     "shared between f and C_lr by their tolerances"])
-    else:
-        alone = (f"the targets alone: +-{fit.shape_targets_sigma:.4f}"
-                 if math.isfinite(fit.shape_targets_sigma) else "the targets do not see it")
-        rows.append(["f*C_lr", f"x 1 +- {prior_shape:.4f}", "held",
-                     f"({alone}; no better than the profile's)"])
-    table = render_table(["value", "a priori", "fitted", ""], rows, left=(0, 3), indent=2)
-    lines = ["values (one sigma):", table.rstrip()]
-    for name, w in fit.overruled:
-        lines.append(f"  {name}: the profile's value overruled by the lasers "
-                     f"(--beyond-tolerance; it was {w:.1f} standardised residuals off)")
-    return lines
-
-
-def _test_lines(fit: ScaleFit) -> list[str]:
-    if not fit.dof:
-        return ["test      no degrees of freedom: nothing checks the fit"]
-    verdict = "passed" if fit.chance >= 0.05 else (
-        f"failed at 5 %: the sigmas are scaled by sigma0 = {fit.sigma0:.2f}")
-    line = (f"test      sigma0 (a posteriori, of unit weight) {fit.sigma0:.2f}; chi-square "
-            f"{fit.chi2:.2f} on {fit.dof} degrees of freedom, chance {fit.chance:.2f}: "
-            f"{verdict}")
-    lines = [line]
-    if len(fit.runs) > 1:
-        lines.append(f"one rig   the sessions' own scales agree (chance "
-                     f"{fit.one_rig_chance:.2f}): " + ", ".join(
-                         f"{r.run} x {r.scale:.4f} +- {r.sigma:.4f}" for r in fit.runs))
-    return lines
-
-
-_PRIOR_SOURCES = {PRIOR_SCALE: "tape", PRIOR_SHAPE: "lens spec, tape",
-                  PRIOR_CONSTANT: "laser, a priori 0"}
-
-
-def _residual_lines(fit: ScaleFit) -> list[str]:
-    rows = []
-    for r in fit.residuals:
-        if r.target is not None:
-            t = r.target
-            rows.append([r.name, f"{t.laser_m:.2f}", f"{t.estimate_m:.2f}",
-                         f"{r.residual_pct:+.3f} %", f"{r.w:+.2f}",
-                         f"{r.redundancy:.2f}", ""])
-        else:
-            what = _PRIOR_SOURCES[r.name]
-            value = (f"{r.residual_pct:+.3f} m" if r.name == PRIOR_CONSTANT
-                     else f"{r.residual_pct:+.3f} %")
-            rows.append([f"{r.name} ({what})", "", "", value, f"{r.w:+.2f}",
-                         f"{r.redundancy:.2f}", "prior"])
-    for rejected in fit.rejected:
-        t = rejected.target
-        rows.append([t.name, f"{t.laser_m:.2f}", f"{t.estimate_m:.2f}",
-                     f"{rejected.miss_pct:+.3f} %", f"{rejected.w:.1f}", "",
-                     "REJECTED: a blunder"])
-    table = render_table(["row", "laser m", "estimate m", "residual", "w", "r", ""],
-                         rows, left=(0, 6), indent=2)
-    lines = ["residuals (the fit minus the observation; w standardised, r redundancy; "
-             "blunders beyond |w| 3.29):", table.rstrip()]
-    for rejected in fit.rejected:
-        lines.append(f"  left out {rejected.target.name}: {rejected.miss_pct:+.2f} % from "
-                     f"the fit without it, w = {rejected.w:.1f} (a laser on something "
-                     "nearer, or a typo?)")
-    return lines
-
-
-def _check_lines(fit: ScaleFit) -> list[str]:
-    lines = []
-    if fit.checks:
-        lines += ["each target checked by the fit without it and its twins (leave-one-out):",
-                  _check_table(fit.checks),
-                  f"checked: {sum(c.within for c in fit.checks)}/{len(fit.checks)} targets "
-                  f"within {GOAL_PCT:g} % of their laser"]
-    else:
-        lines.append(f"calibrated but unchecked: {len(fit.used)} target(s); {MIN_CHECKED} or "
-                     "more check each against a fit without it")
-    if fit.held_out:
-        lines += ["held out of the fit, checked against it:", _check_table(fit.held_out),
-                  f"held out: {sum(c.within for c in fit.held_out)}/{len(fit.held_out)} "
-                  f"targets within {GOAL_PCT:g} % of their laser"]
-    return lines
-
-
-def _check_table(checks: Sequence[Check]) -> str:
-    rows = [[c.target.name, f"{c.target.laser_m:.2f}", f"{c.target.estimate_m:.2f}",
-             f"{c.calibrated_m:.2f}", f"{c.miss_pct:+.2f} +- {c.sigma_pct:.2f}",
-             f"within {GOAL_PCT:g} %" if c.within else f"OUTSIDE {GOAL_PCT:g} %"]
-            for c in checks]
-    return render_table(["target", "laser m", "before m", "calibrated m", "miss %", ""],
-                        rows, left=(0, 5), indent=2).rstrip()
-
-
-def _laser_lines(fit: ScaleFit, profile: RigProfile) -> list[str]:
-    spec = profile.rangefinder
-    offset = spec.offset_m if spec is not None else None
-    where = (f"the profile's rangefinder offset (right {offset[0]:+.3f}, up "
-             f"{offset[1]:+.3f}, forward {offset[2]:+.3f} m)" if offset is not None
-             else "no rangefinder offset in the profile: its aperture taken at the camera's")
-    value, sigma = fit.laser_constant_m
-    if fit.laser_constant_seen:
-        constant = (f"{value:+.2f} +- {sigma:.2f} m, determined by the targets (a priori 0 "
-                    f"+- {fit.laser_constant_prior_m:.2f} m)")
-    else:
-        constant = (f"assumed 0 +- {fit.laser_constant_prior_m:.2f} m (one reading's sigma): "
-                    f"the targets do not determine it (they leave {value:+.2f} +- "
-                    f"{sigma:.2f} m)")
-    return [f"laser     additive constant {constant}; {where}"]

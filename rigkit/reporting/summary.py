@@ -26,7 +26,7 @@ from rigkit.capture.comparisons import (
     csv_text,
     read_rows,
 )
-from rigkit.capture.session import RESULTS_DIR
+from rigkit.capture.results import RESULTS_DIR
 from rigkit.core.files import write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError

@@ -20,14 +20,13 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
-from rigkit.capture.session import Session, run_metadata
+from rigkit.capture.model import Session
+from rigkit.capture.results import RunRecord
 from rigkit.reporting.scale import (
     RunReference,
     calibration_targets,
-    run_reference,
     run_scale_note,
     scale_source,
 )
@@ -62,7 +61,8 @@ class Verdict:
     shortfall is reported; ``headline`` is one line ("6/6 targets within 1 %: done"),
     ``advice`` what to capture again (may be empty); ``scale`` what the targets say of
     the rig's scale (:func:`rigkit.reporting.scale.run_scale_note`; "" where unknown);
-    ``source`` where the scale came from (:func:`rigkit.reporting.scale.scale_source`)."""
+    ``source`` where the scale came from (:func:`rigkit.reporting.scale.scale_source`);
+    ``shortfalls`` what the run said makes it miss the goal."""
 
     ok: bool
     headline: str
@@ -70,6 +70,7 @@ class Verdict:
     advice: tuple[str, ...]
     scale: str = ""
     source: str = ""
+    shortfalls: tuple[str, ...] = ()
 
 
 def row_label(row: Comparison, goal_pct: float = GOAL_PCT) -> str:
@@ -118,7 +119,8 @@ def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOA
     ``calibrated``: the targets that calibrated the rig, shown and not counted."""
     if not rows:
         return Verdict(False, "no laser targets: nothing to check the depth against", (),
-                       ("mark at least one target and fire the laser at it",), scale, source)
+                       ("mark at least one target and fire the laser at it",), scale, source,
+                       tuple(shortfalls))
     targets = tuple(judge_target(row, profile, goal_pct, frames, row.target in calibrated)
                     for row in rows)
     counted = [t for t in targets if not t.calibrated]
@@ -135,25 +137,23 @@ def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOA
         more = f" ({used} more calibrated the rig: not counted)" if used else ""
         headline = (f"{passed}/{len(counted)} {'independent ' if used else ''}targets within "
                     f"{goal_pct:g} %{more}: {verdict}")
-    return Verdict(done, headline, targets, _advice(rows, targets), scale, source)
+    return Verdict(done, headline, targets, _advice(rows, targets), scale, source,
+                   tuple(shortfalls))
 
 
-def session_verdict(session: Session, rows: Sequence[Comparison], *,
-                    profile: RigProfile | None = None, frames: int | None = None,
-                    shortfalls: Sequence[str] | None = None,
-                    reference: RunReference | None = None) -> Verdict:
-    """:func:`judge` of a session's run ``rows`` with everything the session says of it:
-    its rig (``profile``), burst length, the run's shortfalls and reference (read from
-    its ``results/`` where not given), the targets that calibrated its rig and where the
-    scale came from. What every front end shows after a run."""
-    profile = profile or session.rig()
+def run_verdict(session: Session, rows: Sequence[Comparison], profile: RigProfile,
+                record: RunRecord, goal_pct: float = GOAL_PCT) -> Verdict:
+    """The verdict on a session's run (:func:`judge`) from its comparison rows, the rig
+    it ran with and its record: the frames it stacked, what it said falls short, what
+    its targets say of the scale, the targets that calibrated the rig (shown, not
+    counted) and where the scale came from. ``rigkit process`` returns it; the field TUI
+    shows the one its run returned, or this on reopening a session (the same function,
+    the same words)."""
     calibrated = calibration_targets(profile, session)
-    shortfalls = run_shortfalls(session.path) if shortfalls is None else shortfalls
-    reference = reference or run_reference(session.path)
-    return judge(rows, profile, frames=frames or session.burst_length,
-                 shortfalls=shortfalls,
-                 scale=run_scale_note(rows, profile, reference, calibrated),
-                 calibrated=calibrated, source=scale_source(profile))
+    scale = run_scale_note(rows, profile, RunReference.of(record), calibrated)
+    return judge(rows, profile, goal_pct, frames=record.burst_length,
+                 shortfalls=record.shortfalls, scale=scale, calibrated=calibrated,
+                 source=scale_source(profile))
 
 
 def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tuple[str, ...]:
@@ -172,9 +172,3 @@ def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tup
         advice.append("check where the laser hit those targets and fire at them again")
     return tuple(advice)
 
-
-def run_shortfalls(session_path: Path) -> tuple[str, ...]:
-    """What the session's latest run said makes it miss the goal (``shortfalls`` in
-    ``results/depth.json``); none without a readable run."""
-    found = (run_metadata(session_path) or {}).get("shortfalls")
-    return tuple(str(s) for s in found) if isinstance(found, list) else ()

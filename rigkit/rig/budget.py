@@ -38,18 +38,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigkit.geometry import distort
-from rigkit.pipeline.settings import PipelineSettings
 from rigkit.rig.bursts import (
     OFFSET_FLOOR_PX,
     default_shimmer,
     expected_offset_error_px,
     reference_scale,
 )
+from rigkit.rig.defaults import DISPARITY_ERROR_PX
 from rigkit.rig.formulas import depth_error_from_disparity, depth_error_from_relative, disparity_px
 from rigkit.rig.profile import Baseline, RigProfile
 
-DISPARITY_ERROR_PX = PipelineSettings().stereo_noise_px
-"""Default disparity (matching) error, pixels: the pipeline's own figure."""
 BUDGET_RANGES_M = (100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0)
 TARGET_FRACTIONS = (0.01, 0.03)
 """Relative depth errors whose onset range the check reports (1 % and 3 %)."""

@@ -12,7 +12,6 @@ from typing import Any
 from rigkit.errors import InputError
 from rigkit.rig.budget import (
     BUDGET_RANGES_M,
-    DISPARITY_ERROR_PX,
     RELATIVE_ROTATION_DEG,
     TARGET_FRACTIONS,
     BudgetRow,
@@ -21,6 +20,7 @@ from rigkit.rig.budget import (
     corner_distortion,
     range_reaching,
 )
+from rigkit.rig.defaults import DISPARITY_ERROR_PX
 from rigkit.rig.findings import Finding
 from rigkit.rig.formulas import (
     affine_residual_px,

@@ -26,12 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rigkit.capture.imagesize import MAX_FRAME_PIXELS
 from rigkit.core.files import write_npy, write_png, write_text
 from rigkit.core.outputs import LEDGER, check_outputs, record_outputs
 from rigkit.core.yamlfile import dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Camera, distortion_coefficients
+from rigkit.imagefile.imagesize import MAX_FRAME_PIXELS
 from rigkit.synth.changes import moved_left, shadow_changed_left
 from rigkit.synth.render import Layers, expose, render_layers
 from rigkit.synth.scene import Scene, SynthParams

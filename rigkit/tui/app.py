@@ -21,11 +21,9 @@ from textual.message import Message
 from textual.theme import Theme
 
 from rigkit.capture import Session, is_session, load_session, log_event
-from rigkit.capture.actions import check_frame_file
 from rigkit.capture.field import (
-    add_position_frame,
-    burst_misfit,
     frames_at,
+    ingest,
     newest_failed,
     onsite_checks,
     resume_note,
@@ -237,30 +235,25 @@ class FieldApp(App[None]):
 
     def ingest(self, path: Path, position: str, retake: bool = False) -> None:
         """Copy ``path`` into the session for ``position``, then run its on-site checks
-        (blocking; called from worker threads). A frame that does not match the
-        position's burst is held back with a question instead (unless ``retake``)."""
+        (blocking; called from worker threads): staged, hashed and decoded once
+        (:func:`rigkit.capture.field.ingest`; what is refused at a glance is told before
+        it is read whole). A frame that does not match the position's burst is held back
+        with a question instead (unless ``retake``)."""
         assert self.session is not None
-        try:  # what is refused at a glance is told at once, before the slow comparisons
-            check_frame_file(self.session, position, path)
-        except RigkitError as exc:
-            self.tell(FrameRefused(position, str(exc)))
-            return
-        except OSError as exc:
-            self.tell(FrameRefused(position, environment_message(exc)))
-            return
         retake = retake or newest_failed(self.session, position)  # a retake joins no burst
-        misfit = None if retake else burst_misfit(self.session, position, path)
-        if misfit is not None:
-            self.tell(FrameHeld(position, path, misfit))
-            return
         try:
-            session = add_position_frame(self.session, position, path, retake)
+            done = ingest(self.session, position, path, replace_existing=retake,
+                          burst=not retake, check_burst=not retake)
         except RigkitError as exc:
             self.tell(FrameRefused(position, str(exc)))
             return
         except OSError as exc:  # a full card or disk, a read-only session
             self.tell(FrameRefused(position, environment_message(exc)))
             return
+        if done.held is not None:
+            self.tell(FrameHeld(position, path, done.held))
+            return
+        session = done.session
         self.call_from_thread(setattr, self, "session", session)
         self.tell(FrameAdded(position, path.name))
         self.check_position(session, position)

@@ -24,9 +24,9 @@ from pathlib import Path
 
 from rigkit.capture import POSITIONS, Session
 from rigkit.capture.actions import stored_name
-from rigkit.capture.rawio import RAW_SUFFIXES
-from rigkit.capture.session import RAW_DIR
+from rigkit.capture.model import RAW_DIR
 from rigkit.core.tables import visible
+from rigkit.imagefile.rawio import RAW_SUFFIXES
 
 IMAGE_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".jpg", ".jpeg"}) | RAW_SUFFIXES
 SETTLE_S = 0.6

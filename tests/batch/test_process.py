@@ -75,9 +75,9 @@ def test_results_folder_is_complete(processed_session: Path) -> None:
 
 
 def test_reprocessing_replaces_results_and_keeps_history(
-    processed_session: Path, tmp_path: Path
+    processed_small: Path, tmp_path: Path
 ) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     raw_before = {p.name: p.read_bytes() for p in (copy / "raw").iterdir()}
     process_session(copy, "20260102T000000Z-0002")
     meta = json.loads((copy / "results" / "depth.json").read_text())
@@ -89,9 +89,9 @@ def test_reprocessing_replaces_results_and_keeps_history(
 
 
 def test_a_failed_write_leaves_the_old_results(
-    processed_session: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    processed_small: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     before = (copy / "results" / "depth.json").read_text()
 
     def broken(img: np.ndarray, compression: int | None = None) -> bytes:
@@ -105,8 +105,8 @@ def test_a_failed_write_leaves_the_old_results(
     assert len(read_rows(copy / LOG_NAME)) == 5
 
 
-def test_an_interrupted_swap_is_undone(processed_session: Path, tmp_path: Path) -> None:
-    copy = copy_session(processed_session, tmp_path)
+def test_an_interrupted_swap_is_undone(processed_small: Path, tmp_path: Path) -> None:
+    copy = copy_session(processed_small, tmp_path)
     os.rename(copy / "results", copy / ".results-old-20260104T000000Z-0004")
     (copy / ".results-20260105T000000Z-0005").mkdir()
     recover_folder(copy, "results")
@@ -233,10 +233,10 @@ def test_a_targets_sigma_is_what_its_windows_median_scatters() -> None:
     assert math.isnan(median_scatter(sky, 480, 360, 9))  # nothing measures it
 
 
-def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Path) -> None:
+def test_a_session_being_processed_is_refused(small_session: Path, tmp_path: Path) -> None:
     import fcntl
 
-    copy = copy_session(synth_session, tmp_path)
+    copy = copy_session(small_session, tmp_path)
     with open(copy / ".lock", "a") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
         with pytest.raises(InputError, match="busy: another rigkit command holds it"):
@@ -268,7 +268,7 @@ def test_a_session_with_bursts_and_a_lens_profile(tmp_path: Path) -> None:
     assert outcome.ok, outcome.message
     meta = json.loads((out / "results" / "depth.json").read_text())
     assert [len(meta["frames"][p]) for p in ("left", "right", "back")] == [3, 3, 3]
-    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"][0] == pytest.approx(k1)
+    assert meta["rig"]["distortion"][0] == pytest.approx(k1)
     # The shimmer measured between the left burst's first two frames (0.1 px rendered,
     # over 8 px: at 640 px the tracker's 21 px window averages some of it away).
     assert meta["shimmer"]["frames"] == "left frames 1 and 2"

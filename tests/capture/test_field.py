@@ -3,6 +3,7 @@ known similarity and parallax, magnification from a known range, sessions in tmp
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 import shutil
@@ -16,9 +17,9 @@ from rigkit.capture import create_session, load_session
 from rigkit.capture.field import (
     add_position_frame,
     back_checks,
-    burst_misfit,
     exif_check,
     frames_at,
+    ingest,
     next_step,
     onsite_checks,
     right_checks,
@@ -206,10 +207,14 @@ def test_a_frame_that_cannot_be_matched_with_the_burst_is_none_of_it(tmp_path: P
     taken into the burst with a tick, since "could not compare" counted as "belongs"."""
     session = add_position_frame(new_session(tmp_path), "left",
                                  _png(tmp_path / "one.png", texture(seed=1)))
+    other = ingest(session, "left", _png(tmp_path / "other.png", texture(seed=2)), burst=True,
+                   check_burst=True)
+    assert other.held is not None
+    assert other.held.startswith("other.png does not match the left burst")
+    assert len(frames_at(load_session(session.path), "left")) == 1  # held, not added
     swayed = _png(tmp_path / "swayed.png", similarity(texture(seed=1), 1.0, 0.0, (1.5, -1.0)))
-    assert burst_misfit(session, "left", swayed) is None
-    other = burst_misfit(session, "left", _png(tmp_path / "other.png", texture(seed=2)))
-    assert other is not None and other.startswith("other.png does not match the left burst")
+    done = ingest(session, "left", swayed, burst=True, check_burst=True)
+    assert done.held is None and len(frames_at(done.session, "left")) == 2
 
 
 def test_add_frame_burst_refuses_a_frame_of_another_view(tmp_path: Path, capsys) -> None:
@@ -352,10 +357,12 @@ def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
     (the checks, the check image beside them, the back frame's roles check against the
     right one): each file decoded once."""
     from rigkit.capture import views
+    from rigkit.imagefile import decode
 
     read: list[str] = []
-    decoded = views.decoded
-    monkeypatch.setattr(views, "decoded", lambda s, f: read.append(f.file) or decoded(s, f))
+    decoded = decode._decode
+    monkeypatch.setattr(decode, "_decode", lambda path, data: read.append(
+        hashlib.sha256(data).hexdigest()) or decoded(path, data))
     left = texture(seed=11)
     frames = {"left": left, "right": similarity(left, 1.0, 0.4, (6.0, 1.0)),
               "back": similarity(left, 0.99, -0.3, (2.0, -3.0))}
@@ -364,12 +371,11 @@ def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
         session = add_position_frame(session, position, _png(tmp_path / f"{position}.png", image))
         onsite_checks(session, position)
         views.check_image(session, frames_at(session, position)[-1])
-    assert read == ["raw/left.png", "raw/right.png", "raw/back.png"]
-
+    assert read == [frames_at(session, p)[0].sha256 for p in ("left", "right", "back")]
 
 
 def test_the_back_check_gives_c_lb_as_the_profile_does() -> None:
-    """A profile's C_lb of 2.031 m is said as such, not "2.0" (issue 49, item 6)."""
+    """A profile's C_lb of 2.031 m is said as such, not "2.0"."""
     from dataclasses import replace
 
     from rigkit.rig import Baseline

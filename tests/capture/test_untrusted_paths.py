@@ -26,9 +26,9 @@ import yaml
 
 from rigkit.capture import load_session
 from rigkit.capture.actions import clean_staging
-from rigkit.capture.rawio import load_linear_grey
 from rigkit.cli import main
 from rigkit.errors import InputError
+from rigkit.imagefile.rawio import load_linear_grey
 from tests.conftest import copy_session
 from tests.dngutil import write_dng
 

@@ -17,7 +17,7 @@ import yaml
 
 from rigkit.batch import process_session
 from rigkit.capture import load_session
-from rigkit.capture.actions import stale_results
+from rigkit.capture.results import stale_results
 from rigkit.cli import main
 from rigkit.rig import load_rig
 from rigkit.synth.evaluate import evaluate_scene

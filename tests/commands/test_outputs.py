@@ -19,7 +19,8 @@ from pathlib import Path
 import pytest
 
 from rigkit.capture.comparisons import LOG_NAME
-from rigkit.capture.session import DERIVED_DIR, HISTORY_FILE, RAW_DIR, RESULTS_DIR, SESSION_FILE
+from rigkit.capture.model import DERIVED_DIR, HISTORY_FILE, RAW_DIR, SESSION_FILE
+from rigkit.capture.results import RESULTS_DIR
 from rigkit.cli import build_parser, main
 from rigkit.commands import OutputPath
 from rigkit.core.outputs import LEDGER, SESSION_KEPT

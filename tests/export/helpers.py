@@ -3,7 +3,6 @@ PLY reader written for the tests (numpy only)."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -13,7 +12,7 @@ import numpy as np
 from rigkit.capture import LaserReading, add_target, create_session, load_session
 from rigkit.capture.positioning import set_tripod_position
 from rigkit.capture.tripod import TripodPosition, enu_direction
-from tests.conftest import rig_file
+from tests.conftest import make_record, rig_file
 
 SIZE = (400, 300)
 """(width, height) px: rigs/synthetic.yaml's 6 x 4.5 degree view at 400 px."""
@@ -41,8 +40,12 @@ def write_results(session: Path, depth: np.ndarray, run_id: str = "20260412T0900
     np.save(results / "sigma.npy", (0.01 * depth).astype(np.float32))
     grey = (np.arange(depth.size) % 256).astype(np.uint8).reshape(depth.shape)
     cv2.imwrite(str(results / "grey.png"), grey)
-    frames = {pos: [] for pos in ("left", "right", "back")}  # the session's: none taken
-    (results / "depth.json").write_text(json.dumps({"run_id": run_id, "frames": frames}))
+    height, width = depth.shape
+    camera = load_session(session).rig().intrinsics((width, height))
+    record = make_record(load_session(session), run_id=run_id,
+                         image_size_px=(width, height),
+                         left_camera_px=(camera.focal_px, camera.cx_px, camera.cy_px))
+    (results / "depth.json").write_text(record.to_json())
 
 
 def new_session(folder: Path, name: str = "geo", depth: np.ndarray | None = None,

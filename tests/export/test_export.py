@@ -16,6 +16,7 @@ from rigkit.errors import InputError
 from rigkit.export import export_path
 from rigkit.export.source import open_depth
 from rigkit.rangefinder.ranging import range_on_ray
+from tests.conftest import make_record
 from tests.export.helpers import SIZE, depth_plane, new_session, read_ply
 
 
@@ -56,21 +57,21 @@ def test_a_depth_map_file_from_rigkit_depth(tmp_path: Path) -> None:
     np.save(tmp_path / "d.npy", depth)
     np.save(tmp_path / "d.sigma.npy", depth * np.float32(0.01))
     cv2.imwrite(str(tmp_path / "d.grey.png"), np.full(depth.shape, 77, np.uint8))
-    meta = {"rig": {"name": "bench", "focal_px": 4000.0},
-            "left_camera_px": {"f": 4000.0, "cx": 100.0, "cy": 50.0}}
-    (tmp_path / "d.json").write_text(json.dumps(meta))
+    record = make_record(rig_name="bench", left_camera_px=(4000.0, 100.0, 50.0))
+    (tmp_path / "d.json").write_text(record.to_json())
     done = export_path(tmp_path / "d.npy", tmp_path / "out", ["ply"])
     ply = read_ply(tmp_path / "out" / "d.ply")
     first = ply[0]  # pixel (20, 0): the top-left corner is NaN
     assert first["x"] == pytest.approx((20 - 100.0) / 4000.0 * depth[0, 20], rel=1e-6)
     assert first["y"] == pytest.approx((0 - 50.0) / 4000.0 * depth[0, 20], rel=1e-6)
     assert set(ply["red"]) == {77} and done.georef is None
-    # A D.json from before rigkit recorded the intrinsics: its focal length, the centre.
+    # A D.json without the intrinsics (an older rigkit's): refused, not guessed.
+    meta = json.loads(record.to_json())
     del meta["left_camera_px"]
     (tmp_path / "d.json").write_text(json.dumps(meta))
-    export_path(tmp_path / "d.npy", tmp_path / "old", ["ply"])
-    old = read_ply(tmp_path / "old" / "d.ply")[0]
-    assert old["x"] == pytest.approx((20 - 199.5) / 4000.0 * depth[0, 20], rel=1e-6)
+    with pytest.raises(InputError, match=r"d\.json: left_camera_px: missing"):
+        export_path(tmp_path / "d.npy", tmp_path / "old", ["ply"])
+    assert not (tmp_path / "old").exists()
 
 
 def test_infinite_depths_are_no_points_and_a_reach_las_cannot_hold_is_one_line(

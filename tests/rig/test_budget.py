@@ -268,7 +268,7 @@ def test_a_laser_calibrated_profile_uses_its_calibrated_tolerances() -> None:
     """The P1000 with C_lb calibrated to 0.2 % at 300 m (f and C_lr left at 1 % each):
     f and C_lr only stretch depth about the depth the calibration pinned, so 1 % is in
     reach there (on 81dfff3 `rig check` said "1 % out of reach at every range")."""
-    from rigkit.rig.profile import Calibration, CalibrationSource
+    from rigkit.rig.provenance import Calibration, CalibrationSource
 
     taped = load_rig(ROOT / "rigs" / "p1000-tripod.yaml")
     source = CalibrationSource("ridge", "/data/ridge", "ab" * 32, "run", "2026:04:12", {})

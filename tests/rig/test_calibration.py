@@ -13,14 +13,12 @@ import pytest
 
 from rigkit.errors import InputError
 from rigkit.rig import load_rig
-from rigkit.rig.calibration import (
-    CRITICAL_W,
-    LaserTarget,
-    calibrated_name,
-    calibrated_profile,
-    fit_scale,
-)
-from rigkit.rig.profile import Calibration, CalibrationSource, dump_rig
+from rigkit.rig.adjustment import LaserTarget
+from rigkit.rig.calibrated import calibrated_name, calibrated_profile
+from rigkit.rig.calibration import fit_scale
+from rigkit.rig.defaults import CRITICAL_W
+from rigkit.rig.profile import dump_rig
+from rigkit.rig.provenance import Calibration, CalibrationSource
 
 ROOT = Path(__file__).resolve().parents[2]
 LASER_M = 0.3  # one reading's sigma

@@ -313,7 +313,7 @@ def test_cli_reports_a_bad_profile_on_one_line(capsys: pytest.CaptureFixture[str
 def test_a_calibrated_profiles_provenance_reads_back(tmp_path: Path) -> None:
     """Where the scale came from travels with the profile: sessions, their frames' hash,
     targets used, held out and rejected, what changed."""
-    from rigkit.rig.profile import Calibration, CalibrationSource
+    from rigkit.rig.provenance import Calibration, CalibrationSource
 
     profile = load_rig(ROOT / "rigs" / "p1000-tripod.yaml")
     source = CalibrationSource("ridge-0412", "/data/ridge-0412", "ab" * 32, "run-1",

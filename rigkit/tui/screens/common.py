@@ -10,7 +10,7 @@ from textual.binding import Binding
 from textual.screen import Screen
 
 from rigkit.capture import Session
-from rigkit.capture.session import FIELD_STEPS
+from rigkit.capture.model import FIELD_STEPS
 from rigkit.core.tables import visible
 from rigkit.rig.findings import Finding
 from rigkit.tui.config import FieldConfig

@@ -14,10 +14,10 @@ from textual.widgets import Footer, Header, Input, Static
 from textual.worker import get_current_worker
 
 from rigkit.capture import LaserReading, Session, Target, add_target, utc_now
-from rigkit.capture.actions import remove_reading, remove_target
 from rigkit.capture.field import frames_at
+from rigkit.capture.model import stray_readings
 from rigkit.capture.readings import implied_range, reading_doubt, reading_from_device
-from rigkit.capture.session import stray_readings
+from rigkit.capture.targets import remove_reading, remove_target
 from rigkit.capture.views import check_image
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow

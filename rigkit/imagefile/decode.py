@@ -11,6 +11,7 @@ import numpy as np
 from rigkit.core.chatter import attributed, captured_stderr
 from rigkit.core.safefs import read_input
 from rigkit.errors import InputError
+from rigkit.imagefile.imagesize import MAX_FRAME_BYTES
 
 _CUT_SHORT = re.compile(r"premature end|unexpected end|data corrupted|read error|"
                         r"input buffer is incomplete", re.IGNORECASE)
@@ -38,18 +39,13 @@ def load_grey(path: str | Path) -> np.ndarray:
     return decode_grey(path, read_image_file(path))
 
 
-MAX_IMAGE_BYTES = 2_000_000_000
-"""The largest image file read, bytes: the largest frame rigkit decodes as uncompressed
-16-bit RGBA (:data:`rigkit.capture.imagesize.MAX_FRAME_BYTES`)."""
-
-
 def read_image_file(path: Path) -> bytes:
     """The bytes of the file at ``path``, read with Python's own I/O, so that no file name
     reaches OpenCV's C++ (a name that is not UTF-8, such as one holding the byte 0xff,
     crashes its imread). InputError naming the file when it is missing, not a regular
     file (a FIFO or a device is refused unopened) or larger than
-    :data:`MAX_IMAGE_BYTES` (unread)."""
-    return read_input(path, MAX_IMAGE_BYTES, "an image file")
+    :data:`rigkit.imagefile.imagesize.MAX_FRAME_BYTES` (unread)."""
+    return read_input(path, MAX_FRAME_BYTES, "an image file")
 
 
 def decode_grey(path: Path, data: bytes) -> np.ndarray:
