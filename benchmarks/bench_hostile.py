@@ -2,7 +2,7 @@
 ``comparisons.csv`` is a 3 GB (sparse) file, timed from outside with its peak memory,
 and the field TUI's walk of a card folder of N frame files, in CPU milliseconds a walk.
 
-    python benchmarks/bench_hostile.py [--tree PATH] [--files 2000]
+    .venv/bin/python -m benchmarks.bench_hostile [--tree PATH] [--files 2000]
 
 ``--tree`` runs the first figure with the rigkit of another checkout (its ``rigkit/`` on
 PYTHONPATH), e.g. an older commit unpacked with ``git archive``, for the figure before.
@@ -69,15 +69,17 @@ def card_walk(files: int) -> str:
     return f"card walk, {files} frame files: {1000 * cpu:.1f} ms CPU a walk"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--tree", type=Path, help="another checkout's root, for the figure "
                         "before")
-    parser.add_argument("--files", type=int, default=2000)
-    args = parser.parse_args()
+    parser.add_argument("--files", type=int, default=2000,
+                        help="frame files on the card walked (default 2000)")
+    args = parser.parse_args(argv)
     print(show_large_log(args.tree))
     print(card_walk(args.files))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
