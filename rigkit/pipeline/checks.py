@@ -40,16 +40,6 @@ MAX_RIGHT_SCALE_CHANGE = 0.01
 """Left and right views are at the same distance: a larger scale change is zoom."""
 
 
-def affine_scale(affine: np.ndarray) -> float:
-    """The scale of a (2, 3) affine map between two views (other / left size), along
-    the image's columns: the norm of its second row, which a turn of the view leaves
-    alone. Left/right parallax stretches or compresses the rows only (a facade turned
-    away from the rig: a right view that was 0.981x the left one along the rows, and
-    1.000x along the columns, read as 0.991x by the determinant, smaller than the back
-    view); a zoom or the back view's magnification scales both."""
-    return float(np.hypot(affine[1, 0], affine[1, 1]))
-
-
 def roles_problem(right: float, back: float, baseline_lb_m: float) -> str | None:
     """Why views of scale ``right`` and ``back`` (each against the left view) look like
     the back and the right view given the wrong way round, or None. The back camera,
@@ -63,11 +53,11 @@ def roles_problem(right: float, back: float, baseline_lb_m: float) -> str | None
             "the right frame looks like the one taken behind; were right and back swapped?")
 
 
-def check_roles(lr: Matches, lb: Matches, baseline_lb_m: float) -> None:
-    """PipelineError when the right (matches ``lr``) and back (``lb``) views look
-    swapped (:func:`roles_problem`), the back view shows no magnification
-    (:func:`check_magnification`), or the right one is zoomed."""
-    right, back = affine_scale(lr.affine), affine_scale(lb.affine)
+def check_roles(right: float, back: float, baseline_lb_m: float) -> None:
+    """PipelineError when views of scale ``right`` and ``back`` against the left one
+    (:attr:`rigkit.pipeline.motion.ViewMotion.scale`: at the matches' mean depth, their
+    depths' parallax taken out) look swapped (:func:`roles_problem`), the back view
+    shows no magnification (:func:`check_magnification`), or the right one is zoomed."""
     problem = roles_problem(right, back, baseline_lb_m)
     if problem is not None:
         raise PipelineError(problem)

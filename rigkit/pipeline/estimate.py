@@ -16,9 +16,10 @@ from rigkit.pipeline.agreement import view_agreement
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
 from rigkit.pipeline.checks import check_distinct, check_parallax, check_roles
 from rigkit.pipeline.depth import to_left
-from rigkit.pipeline.distortion import LensFit, refine_lens
+from rigkit.pipeline.distortion import LensFit, refine_lens, three_view_tracks
 from rigkit.pipeline.features import Matches, match_all
 from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.motion import BackStart, back_view_start, rig_motion
 from rigkit.pipeline.rectify import (
     Rectification,
     apply_homography,
@@ -257,9 +258,13 @@ def estimate_depth(
     # The left image prepared once for both pairs, the views' work in parallel.
     raw_lr, raw_lb = match_all(left, [(right, "left/right"), (back, "left/back")], s)
     check_distinct(left, right, back)  # after matching: a blank scene says so first
-    check_roles(raw_lr, raw_lb, rig.baseline_lb_m)
+    given = Lens(rig.focal_px, size, rig.distortion)
+    right_motion, back_motion = rig_motion(raw_lr, raw_lb, rig.focal_px, given.centre,
+                                           three_view_tracks(raw_lr, raw_lb))
+    check_roles(right_motion.scale, back_motion.scale, rig.baseline_lb_m)
+    start = back_view_start(back_motion, rig.baseline_lb_m)
     lap("matching", 0.2)
-    (lens, right_lens, back_lens), lens_fit = _lenses(raw_lr, raw_lb, rig, size, s)
+    (lens, right_lens, back_lens), lens_fit = _lenses(raw_lr, raw_lb, rig, size, s, start)
     if lens_fit is not None:
         lap("lens", 0.25)
     m_lr, m_lb = _ideal(raw_lr, lens, right_lens), _ideal(raw_lb, lens, back_lens)
@@ -277,13 +282,13 @@ def estimate_depth(
         disparity = matched.result()
     disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
     lap("stereo", 0.75)
-    amb = remove_ambiguity(m_lb, disparity, scale, rect, rig, s)
+    amb = remove_ambiguity(m_lb, disparity, scale, rect, rig, s, start)
     lap("ambiguity", 0.8)
     agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, back_lens, rig, s)
     if agree.disagree.any():
         disparity = np.where(agree.disagree, np.nan, disparity).astype(np.float32)
         if _touches(m_lb, agree.disagree, rect, scale):
-            amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s)
+            amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s, start)
     lap("agreement", 0.85)
     if lens_fit is not None:  # the lens and one camera's centre, fitted, move the offset too
         offset_sigma = float(np.sqrt(amb.offset_sigma_px**2 + lens_fit.offset_sigma_px**2
@@ -331,7 +336,7 @@ def estimate_depth(
 
 def _lenses(
     raw_lr: Matches, raw_lb: Matches, rig: RigGeometry, size: tuple[int, int],
-    s: PipelineSettings,
+    s: PipelineSettings, start: BackStart,
 ) -> tuple[tuple[Lens, Lens, Lens], LensFit | None]:
     """The lens the later stages use, as each view (left, right, back) sees it: the
     given one, refined from the views unless ``s.distortion_terms`` is 0, each view
@@ -342,8 +347,8 @@ def _lenses(
         left, right, back = (Lens(rig.focal_px, size, rig.distortion, centre)
                              for centre in rig.principal_points_px)
         return (left, right, back), None
-    start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
-    fit = refine_lens(raw_lr, raw_lb, start, given, rig, s)
+    rectified = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
+    fit = refine_lens(raw_lr, raw_lb, rectified, given, rig, s, start)
     return (fit.lens(rig.focal_px, size, 0), fit.lens(rig.focal_px, size, 1),
             fit.lens(rig.focal_px, size, 2)), fit
 
@@ -359,14 +364,14 @@ def _touches(m: Matches, mask: np.ndarray, rect: Rectification, scale: float) ->
 
 def _without_disagreeing(
     amb: Ambiguity, m_lb: Matches, disparity: np.ndarray, scale: float,
-    rect: Rectification, rig: RigGeometry, s: PipelineSettings,
+    rect: Rectification, rig: RigGeometry, s: PipelineSettings, start: BackStart,
 ) -> Ambiguity:
     """Ambiguity removal again, on the ``disparity`` without the pixels where the views
     disagree: what moved between the captures must not pull the offset. Where too few
     back-view matches remain for that, the first fit ``amb`` stands (its robust loss
     has already discounted the matches that fit no single pose)."""
     try:
-        return remove_ambiguity(m_lb, disparity, scale, rect, rig, s)
+        return remove_ambiguity(m_lb, disparity, scale, rect, rig, s, start)
     except PipelineError:
         return amb
 

@@ -1,0 +1,243 @@
+"""How another view moved against the left one, from its matches alone, at any depth.
+
+The checks that refuse a capture before it gives a wrong depth (the back view is not
+magnified, right and back are swapped, the zoom changed) and the starting points of
+the fits that follow (:mod:`rigkit.pipeline.distortion`, :mod:`rigkit.pipeline.ambiguity`)
+need each view's *size* against the left one: a back view C_lb behind shows the scene
+``z / (z + C_lb)`` as large, a right view beside the left one as large. An affine map
+fitted to the matches measures that size only where the scene is at one depth: where
+the depth varies across the view (ground receding from 200 to 450 m), the parallax of
+the right view's baseline shears its map, and the back camera's small sideways or
+vertical offset stretches its map along that offset by up to a few percent, more than
+the magnification itself (0.7 % at 300 m).
+
+So each match's own depth is a free unknown here. To first order in the turn and in
+C / z, a left point at normalised position ``p = (x, y)`` with inverse depth ``w``
+appears in a view turned by the rotation vector ``r`` and moved to ``T`` (left frame,
+m) at::
+
+    x' = x + r_y (1 + x^2) - r_x x y - r_z y + s x + w (-T_x + T_z x)
+    y' = y - r_x (1 + y^2) + r_y x y + r_z x + s y + w (-T_y + T_z y)
+
+with ``s`` the view's scale against the left one. Each match ``i`` gets its own
+``w_i`` (relative: their weighted mean is 0, so that ``s`` is the scale at the
+matches' mean inverse depth); ``T`` is known along the axis the view moved (the right
+view: x; the back view: z, behind) and free across it (the tripod's offsets). The
+model is linear in ``(r, s)``, in each ``w_i`` and in ``T``'s free components
+separately, and is fitted by alternating between them (each step an exact, weighted
+least-squares solve; Cauchy weights discount matches no depth explains). Along the
+parallax of each match its own ``w_i`` absorbs what depth does, so the scale is read
+off across it: for the right view from the rows' spacing, for the back view from its
+contraction across the direction towards its epipole.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from rigkit.errors import PipelineError
+from rigkit.geometry import rotvec_to_matrix
+from rigkit.pipeline.checks import check_magnification
+from rigkit.pipeline.features import Matches
+
+ITERATIONS = 30
+"""Alternating steps at most; the fit stops earlier once no scale moves by more than
+:data:`SCALE_TOL` (alternation creeps along the yaw and the mean depth, which trade
+off: the scales settle to ~1e-5 within 15 steps)."""
+SCALE_TOL = 1e-6
+TURNS = 3
+"""Times the turn found is taken out exactly and the model fitted again: a roll of 5
+deg scales the view by cos(5 deg) = 0.996 at second order, half the magnification."""
+MIN_MATCHES = 12
+CAUCHY_SCALE = 2.5
+"""Residuals beyond this many robust standard deviations count for less and less."""
+FLOOR_PX = 0.02
+"""The least robust scale of the residuals (px): rendered views can leave less."""
+
+
+@dataclass(frozen=True)
+class ViewMotion:
+    """What :func:`view_motion` found for one view against the left one.
+
+    ``scale``: the view's size against the left one at the matches' mean inverse depth,
+    with the parallax of their depths taken out (a right view ~1, a back view C_lb
+    behind ``z / (z + C_lb)``, a zoomed view its zoom); ``rotvec`` (3,) rad, the turn
+    left -> view (the rotation matrix's vector, about the principal point assumed);
+    ``translation`` (3,): where the view moved, left frame, in units of the baseline
+    along its axis (``(1, ., 0)`` for the right view, ``(., ., -1)`` for the back one);
+    ``rms_px``: the matches' RMS residual, px (Cauchy-weighted); ``matches``: how many
+    carried weight (Cauchy weight over 0.5).
+    """
+
+    scale: float
+    rotvec: np.ndarray
+    translation: np.ndarray
+    rms_px: float
+    matches: int
+
+
+@dataclass(frozen=True)
+class View:
+    """One view's side of a fit: its points ``q`` (N, 2), normalised, and the axis it
+    moved along, ``"x"`` (the right view) or ``"z"`` (the back view, behind)."""
+
+    q: np.ndarray
+    axis: str
+
+
+def view_motion(m: Matches, focal_px: float, centre: np.ndarray, axis: str) -> ViewMotion:
+    """Fit the first-order motion model (module docstring) to ``m`` (left -> view, px)
+    for a view that moved along ``axis`` (:class:`View`). ``centre`` (2,): the
+    principal point assumed (px). Each match's depth is free, so where the depth
+    varies mostly along the view's own parallax, the direction of a back view's
+    sideways and vertical offset is weakly held (its scale less so):
+    :func:`rig_motion` fits both views with one depth per track."""
+    _enough(len(m.left))
+    p = (m.left - centre) / focal_px
+    return fit_views(p, [View((m.other - centre) / focal_px, axis)], focal_px)[0]
+
+
+def rig_motion(m_lr: Matches, m_lb: Matches, focal_px: float, centre: np.ndarray,
+               tracks: tuple[np.ndarray, np.ndarray, np.ndarray]
+               ) -> tuple[ViewMotion, ViewMotion]:
+    """The right and the back view's motion, fitted together on the ``tracks`` (left,
+    right, back px, (N, 2) each: corners seen in all three) with one inverse depth per
+    track: the right view's parallax holds each depth, the back view's offset and scale
+    follow. With too few tracks, each view is fitted on its own matches."""
+    pl, pr, pb = tracks
+    if len(pl) < MIN_MATCHES:
+        return (view_motion(m_lr, focal_px, centre, "x"),
+                view_motion(m_lb, focal_px, centre, "z"))
+    right, back = fit_views((pl - centre) / focal_px,
+                            [View((pr - centre) / focal_px, "x"),
+                             View((pb - centre) / focal_px, "z")], focal_px)
+    return right, back
+
+
+BackStart = tuple[float, np.ndarray]
+"""Where the fits of the back view start: the range (m) its magnification implies and
+its rotation vector (3,), rad, left -> back (:func:`back_view_start`)."""
+
+
+def back_view_start(back: ViewMotion, baseline_lb_m: float) -> BackStart:
+    """From the back view's motion: the range (m) its magnification implies at the
+    matches' mean inverse depth (PipelineError where it shows none,
+    :func:`~rigkit.pipeline.checks.check_magnification`) and its rotation vector (3,)
+    (rad, left -> back): where the fits of the lens and of the offset start."""
+    return check_magnification(back.scale, baseline_lb_m), back.rotvec.copy()
+
+
+def _enough(n: int) -> None:
+    if n < MIN_MATCHES:
+        raise PipelineError(f"only {n} matches to measure the view's motion "
+                            f"(need {MIN_MATCHES})")
+
+
+def fit_views(p: np.ndarray, views: list[View], focal_px: float) -> list[ViewMotion]:
+    """Fit the model to left points ``p`` (N, 2, normalised) seen in ``views`` with one
+    inverse depth per point, each view's turn taken out exactly and the model fitted
+    again (:data:`TURNS`); its RMS in px of ``focal_px``."""
+    turns = [np.eye(3) for _ in views]
+    fits: list[ViewMotion] | None = None
+    for _ in range(TURNS):
+        seen = [replace(v, q=_turned_back(v.q, R)) for v, R in zip(views, turns, strict=True)]
+        fits = _fit(p, seen, FLOOR_PX / focal_px, fits)
+        turns = [R @ rotvec_to_matrix(f.rotvec) for R, f in zip(turns, fits, strict=True)]
+    assert fits is not None
+    return [replace(f, rotvec=_rotvec(R), rms_px=f.rms_px * focal_px)
+            for f, R in zip(fits, turns, strict=True)]
+
+
+def _turned_back(q: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Normalised points ``q`` (N, 2) seen through the turn ``R`` undone: R^T applied
+    to their rays, projected."""
+    rays = np.column_stack([q, np.ones(len(q))]) @ R  # rows: (R^T ray)^T
+    return rays[:, :2] / rays[:, 2:3]
+
+
+def _rotvec(R: np.ndarray) -> np.ndarray:
+    """The rotation vector (3,) of ``R``."""
+    angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))
+    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    n = np.linalg.norm(axis)
+    return axis * (angle / n) if n > 1e-15 else np.zeros(3)
+
+
+NOMINAL = {"x": np.array([1.0, 0.0, 0.0]), "z": np.array([0.0, 0.0, -1.0])}
+FREE = {"x": [1], "z": [0, 1]}
+"""A view's translation along its axis is the unit; across it, it is fitted."""
+
+
+def _fit(p: np.ndarray, views: list[View], floor: float,
+         start: list[ViewMotion] | None) -> list[ViewMotion]:
+    """One fit of the first-order model (module docstring) of normalised left points
+    ``p`` seen in ``views`` (their turns so far taken out), from ``start``'s
+    translations (None: straight along each view's axis)."""
+    x, y = p[:, 0], p[:, 1]
+    # Columns of (r_x, r_y, r_z, s), rows (x0', y0', x1', y1', ...), the same per view
+    A = np.zeros((2 * len(p), 4))
+    A[0::2] = np.stack([-x * y, 1 + x * x, -y, x], axis=1)
+    A[1::2] = np.stack([-(1 + y * y), x * y, x, y], axis=1)
+    deltas = [(v.q - p).ravel() for v in views]
+    T = [NOMINAL[v.axis].copy() if start is None else s.translation
+         for v, s in zip(views, start or views, strict=True)]
+    w, weight = np.zeros(len(p)), np.ones(len(p))
+    thetas = [np.zeros(4) for _ in views]
+    residual = np.zeros(len(p))
+    for _ in range(ITERATIONS):
+        cols = [_depth_columns(p, t) for t in T]  # (N, 2): what a unit of w moves a match by
+        new = [_solve(A, d - (w[:, None] * c).ravel(), np.repeat(weight, 2))
+               for d, c in zip(deltas, cols, strict=True)]
+        errs = [(d - A @ th).reshape(-1, 2) for d, th in zip(deltas, new, strict=True)]
+        w = (sum((c * e).sum(axis=1) for c, e in zip(cols, errs, strict=True))
+             / np.maximum(sum((c * c).sum(axis=1) for c in cols), 1e-30))
+        w -= np.average(w, weights=weight)  # the scales are the mean depth's
+        T = [_translation(t, FREE[v.axis], p, e, w, weight)
+             for t, v, e in zip(T, views, errs, strict=True)]
+        residual = np.sqrt(sum(np.sum((e - w[:, None] * _depth_columns(p, t)) ** 2, axis=1)
+                               for e, t in zip(errs, T, strict=True)) / len(views))
+        weight = _cauchy(residual, floor)
+        converged = max(abs(n[3] - o[3]) for n, o in zip(new, thetas, strict=True)) < SCALE_TOL
+        thetas = new
+        if converged:
+            break
+    rms = float(np.sqrt(np.average(residual**2, weights=weight)))
+    return [ViewMotion(scale=float(1.0 + th[3]), rotvec=th[:3].copy(), translation=t,
+                       rms_px=rms, matches=int((weight > 0.5).sum()))
+            for th, t in zip(thetas, T, strict=True)]
+
+
+def _depth_columns(p: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """(N, 2): the normalised displacement of each point per unit of inverse depth for
+    a camera moved to ``T``: ``-T_xy + T_z p``."""
+    return -T[:2] + T[2] * p
+
+
+def _solve(A: np.ndarray, b: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """Weighted least squares by the normal equations (A: (M, 4), well conditioned)."""
+    Aw = A * weight[:, None]
+    return np.linalg.solve(Aw.T @ A, Aw.T @ b)
+
+
+def _translation(T: np.ndarray, free: list[int], p: np.ndarray, e: np.ndarray,
+                 w: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """``T`` with its ``free`` components fitted by weighted least squares to the
+    residuals ``e`` (N, 2) of the turn and scale, given the inverse depths ``w``:
+    each free component k moves match i by ``-w_i`` along image axis k."""
+    fixed = T.copy()
+    fixed[free] = 0.0
+    rest = e - w[:, None] * _depth_columns(p, fixed)
+    out = T.copy()
+    for k in free:
+        den = float(np.sum(weight * w * w))
+        out[k] = -float(np.sum(weight * w * rest[:, k])) / den if den > 0 else 0.0
+    return out
+
+
+def _cauchy(residual: np.ndarray, floor: float) -> np.ndarray:
+    """Cauchy weights of residuals (normalised units), scaled by their robust spread
+    (at least ``floor``)."""
+    scale = CAUCHY_SCALE * max(1.4826 * float(np.median(residual)), floor)
+    return 1.0 / (1.0 + (residual / scale) ** 2)
