@@ -60,6 +60,7 @@ from rigkit.core.threads import ViewPool
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import (
     MAX_RIGHT_SCALE_CHANGE,
+    NO_MAGNIFICATION_SIGMAS,
     implied_range_m,
     roles_problem,
 )
@@ -107,7 +108,7 @@ def burst_misfit(session: Session, position: str, path: Path) -> str | None:
         return None
     try:  # a frame that cannot be matched with the burst's is none of it
         view = map_views(first.image, new, first.reduction, session.rig().focal_px,
-                         reference(session, frames[0]))
+                         reference(session, frames[0]), axis="z" if position == "back" else "x")
     except RigkitError as exc:
         return (f"{path.name} does not match the {position} burst ({exc}): it looks like "
                 "another view")
@@ -252,9 +253,11 @@ def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
     """Magnification of the back view (< 1) and the range it implies."""
     c_lb = profile.baseline_lb.value_m
     checks = [_roll_check(view, "back")]
-    if view.scale >= 1.0:
+    if view.scale >= 1.0 or 1.0 - view.scale <= NO_MAGNIFICATION_SIGMAS * view.scale_sigma:
         checks.append(Finding(
-            "magnification", f"back view {view.scale:.4f}×: not smaller than the left view",
+            "magnification", f"back view {view.scale:.4f}×: not smaller than the left view"
+            + ("" if view.scale >= 1.0 else
+               f" by more than its noise (±{view.scale_sigma:.4f})"),
             redo=f"take the back frame {c_lb:g} m behind the left position, same zoom",
         ))
         return checks

@@ -36,6 +36,8 @@ for the right view to count as seen from elsewhere: a camera only turned spreads
 relief adds to noise in quadrature, so field scenes whose disparities spread 3.4 and
 5.0 px under shimmer spreading them 1.3 and 1.8 px stand 2.7 times clear."""
 MAX_IMPLIED_RANGE_M = 50_000.0  # beyond this, the back view shows no magnification
+NO_MAGNIFICATION_SIGMAS = 3.0
+"""A magnification within this many standard errors of none is none."""
 MAX_RIGHT_SCALE_CHANGE = 0.01
 """Left and right views are at the same distance: a larger scale change is zoom."""
 
@@ -160,16 +162,18 @@ def check_parallax(matches: Matches, rect: Rectification) -> None:
         raise PipelineError(f"left/right: {message} ({redo})")
 
 
-def check_magnification(scale: float, baseline_lb_m: float) -> float:
+def check_magnification(scale: float, baseline_lb_m: float, sigma: float = 0.0) -> float:
     """The range (m) that the back view's magnification ``scale`` (< 1) implies at
-    C_lb; PipelineError if there is no magnification, or the wrong way round."""
+    C_lb; PipelineError if there is no magnification (none beyond
+    :data:`MAX_IMPLIED_RANGE_M`, or none clear of three times the scale's standard
+    error ``sigma``), or it is the wrong way round."""
     if scale >= 1.0:
         raise PipelineError(
             f"left/back: the back view shows the scene {scale:.5f}x as large as the left "
             "view (expected < 1: was the back frame taken behind the left camera?)"
         )
     z = implied_range_m(scale, baseline_lb_m)
-    if z > MAX_IMPLIED_RANGE_M:
+    if z > MAX_IMPLIED_RANGE_M or 1.0 - scale <= NO_MAGNIFICATION_SIGMAS * sigma:
         raise PipelineError(
             f"no magnification between left and back: the back view is {scale:.6f}x the "
             f"left view, a range of {z / 1000:.0f} km at C_lb = {baseline_lb_m} m (was the "

@@ -336,12 +336,13 @@ def estimate_depth(
 
 def _lenses(
     raw_lr: Matches, raw_lb: Matches, rig: RigGeometry, size: tuple[int, int],
-    s: PipelineSettings, start: BackStart,
+    s: PipelineSettings, start: BackStart | None = None,
 ) -> tuple[tuple[Lens, Lens, Lens], LensFit | None]:
     """The lens the later stages use, as each view (left, right, back) sees it: the
     given one, refined from the views unless ``s.distortion_terms`` is 0, each view
-    bent about its own centre: fitted (:mod:`rigkit.pipeline.distortion`), else the
-    rig's principal point for it."""
+    bent about its own centre: fitted (:mod:`rigkit.pipeline.distortion`, from
+    ``start``: :func:`~rigkit.pipeline.motion.back_view_start`), else the rig's
+    principal point for it."""
     given = Lens(rig.focal_px, size, rig.distortion)
     if not s.distortion_terms:
         left, right, back = (Lens(rig.focal_px, size, rig.distortion, centre)

@@ -42,11 +42,10 @@ from rigkit.geometry import rotvec_to_matrix
 from rigkit.pipeline.checks import check_magnification
 from rigkit.pipeline.features import Matches
 
-ITERATIONS = 30
-"""Alternating steps at most; the fit stops earlier once no scale moves by more than
-:data:`SCALE_TOL` (alternation creeps along the yaw and the mean depth, which trade
-off: the scales settle to ~1e-5 within 15 steps)."""
-SCALE_TOL = 1e-6
+ITERATIONS = 20
+"""Gauss-Newton steps at most; the fit stops earlier once no scale moves by more than
+:data:`SCALE_TOL`."""
+SCALE_TOL = 1e-8
 TURNS = 3
 """Times the turn found is taken out exactly and the model fitted again: a roll of 5
 deg scales the view by cos(5 deg) = 0.996 at second order, half the magnification."""
@@ -64,11 +63,16 @@ class ViewMotion:
     ``scale``: the view's size against the left one at the matches' mean inverse depth,
     with the parallax of their depths taken out (a right view ~1, a back view C_lb
     behind ``z / (z + C_lb)``, a zoomed view its zoom); ``rotvec`` (3,) rad, the turn
-    left -> view (the rotation matrix's vector, about the principal point assumed);
+    left -> view (the rotation matrix's vector, about the principal point assumed) that
+    moves the image as the view's pose does at the matches' mean depth: the parallax
+    of its offset across the axis there is a shift the turn takes (what the fits that
+    start from it with no offset need);
     ``translation`` (3,): where the view moved, left frame, in units of the baseline
     along its axis (``(1, ., 0)`` for the right view, ``(., ., -1)`` for the back one);
     ``rms_px``: the matches' RMS residual, px (Cauchy-weighted); ``matches``: how many
-    carried weight (Cauchy weight over 0.5).
+    carried weight (Cauchy weight over 0.5); ``scale_sigma``: the scale's standard
+    error, from the residuals' weighted scatter (independent errors: heat shimmer's
+    shared ones make it larger).
     """
 
     scale: float
@@ -76,6 +80,7 @@ class ViewMotion:
     translation: np.ndarray
     rms_px: float
     matches: int
+    scale_sigma: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -123,10 +128,12 @@ its rotation vector (3,), rad, left -> back (:func:`back_view_start`)."""
 
 def back_view_start(back: ViewMotion, baseline_lb_m: float) -> BackStart:
     """From the back view's motion: the range (m) its magnification implies at the
-    matches' mean inverse depth (PipelineError where it shows none,
-    :func:`~rigkit.pipeline.checks.check_magnification`) and its rotation vector (3,)
-    (rad, left -> back): where the fits of the lens and of the offset start."""
-    return check_magnification(back.scale, baseline_lb_m), back.rotvec.copy()
+    matches' mean inverse depth (PipelineError where it shows none, or none clear of
+    three standard errors, :func:`~rigkit.pipeline.checks.check_magnification`) and its
+    rotation vector (3,) (rad, left -> back): where the fits of the lens and of the
+    offset start."""
+    return (check_magnification(back.scale, baseline_lb_m, back.scale_sigma),
+            back.rotvec.copy())
 
 
 def _enough(n: int) -> None:
@@ -174,66 +181,98 @@ def _fit(p: np.ndarray, views: list[View], floor: float,
          start: list[ViewMotion] | None) -> list[ViewMotion]:
     """One fit of the first-order model (module docstring) of normalised left points
     ``p`` seen in ``views`` (their turns so far taken out), from ``start``'s
-    translations (None: straight along each view's axis)."""
+    translations (None: straight along each view's axis), by Gauss-Newton steps on the
+    product of depth and translation, reweighted (Cauchy) at each."""
     x, y = p[:, 0], p[:, 1]
-    # Columns of (r_x, r_y, r_z, s), rows (x0', y0', x1', y1', ...), the same per view
-    A = np.zeros((2 * len(p), 4))
-    A[0::2] = np.stack([-x * y, 1 + x * x, -y, x], axis=1)
-    A[1::2] = np.stack([-(1 + y * y), x * y, x, y], axis=1)
-    deltas = [(v.q - p).ravel() for v in views]
-    T = [NOMINAL[v.axis].copy() if start is None else s.translation
+    # Each view's columns of (r_x, r_y, r_z, s) per point: (N, 2, 4)
+    a = np.zeros((len(p), 2, 4))
+    a[:, 0] = np.stack([-x * y, 1 + x * x, -y, x], axis=1)
+    a[:, 1] = np.stack([-(1 + y * y), x * y, x, y], axis=1)
+    deltas = [v.q - p for v in views]  # (N, 2) each
+    T = [NOMINAL[v.axis].copy() if start is None else s.translation.copy()
          for v, s in zip(views, start or views, strict=True)]
+    free = [FREE[v.axis] for v in views]
     w, weight = np.zeros(len(p)), np.ones(len(p))
     thetas = [np.zeros(4) for _ in views]
     residual = np.zeros(len(p))
+    unit = np.zeros(4 * len(views))  # the scales' variances per unit residual variance
     for _ in range(ITERATIONS):
-        cols = [_depth_columns(p, t) for t in T]  # (N, 2): what a unit of w moves a match by
-        new = [_solve(A, d - (w[:, None] * c).ravel(), np.repeat(weight, 2))
-               for d, c in zip(deltas, cols, strict=True)]
-        errs = [(d - A @ th).reshape(-1, 2) for d, th in zip(deltas, new, strict=True)]
-        w = (sum((c * e).sum(axis=1) for c, e in zip(cols, errs, strict=True))
-             / np.maximum(sum((c * c).sum(axis=1) for c in cols), 1e-30))
-        w -= np.average(w, weights=weight)  # the scales are the mean depth's
-        T = [_translation(t, FREE[v.axis], p, e, w, weight)
-             for t, v, e in zip(T, views, errs, strict=True)]
-        residual = np.sqrt(sum(np.sum((e - w[:, None] * _depth_columns(p, t)) ** 2, axis=1)
-                               for e, t in zip(errs, T, strict=True)) / len(views))
+        new, w, moves, unit = _step(a, deltas, p, T, free, w, weight, floor)
+        for t, f, m in zip(T, free, moves, strict=True):
+            t[f] += m
+        errs = [d - a @ th - w[:, None] * _depth_columns(p, t)
+                for d, th, t in zip(deltas, new, T, strict=True)]
+        residual = np.sqrt(sum(np.sum(e**2, axis=1) for e in errs) / len(views))
         weight = _cauchy(residual, floor)
         converged = max(abs(n[3] - o[3]) for n, o in zip(new, thetas, strict=True)) < SCALE_TOL
         thetas = new
         if converged:
             break
     rms = float(np.sqrt(np.average(residual**2, weights=weight)))
+    # per residual component: squares over what the unknowns leave free
+    dof = max(2 * len(views) * float(weight.sum()) - len(p) - unit.size, 1.0)
+    variance = float(np.sum(weight * residual**2)) * len(views) / dof
     return [ViewMotion(scale=float(1.0 + th[3]), rotvec=th[:3].copy(), translation=t,
-                       rms_px=rms, matches=int((weight > 0.5).sum()))
-            for th, t in zip(thetas, T, strict=True)]
+                       rms_px=rms, matches=int((weight > 0.5).sum()),
+                       scale_sigma=float(np.sqrt(max(unit[4 * v + 3], 0.0) * variance)))
+            for v, (th, t) in enumerate(zip(thetas, T, strict=True))]
+
+
+def _step(a: np.ndarray, deltas: list[np.ndarray], p: np.ndarray, T: list[np.ndarray],
+          free: list[list[int]], w0: np.ndarray, weight: np.ndarray, floor: float
+          ) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray], np.ndarray]:
+    """One weighted Gauss-Newton step: every view's (r_x, r_y, r_z, s), every point's
+    inverse depth w and the move of each view's free translation components, the
+    product w T linearised about the last depths ``w0``. Each point's w is eliminated
+    (its rows projected off its depth column: Schur's complement) and the w's weighted
+    mean held at 0 by a Lagrange multiplier (the scales are the mean depth's: a common
+    shift of every w is a turn and a scale, all but its second-order part). The free
+    translation components are held towards 0 (no offset across the axis) by a prior of
+    one baseline over sqrt(N), weighed at the residuals' ``floor``: nothing against
+    the matches, but a flat scene (every w 0, at the first step too) moves no offset.
+    ``a``: (N, 2, 4) one view's turn and scale columns per point; ``deltas``: (N, 2)
+    per view. Also the diagonal of the turns' and scales' covariance per unit of
+    residual variance (the constrained solve's inverse)."""
+    n, views = len(p), len(deltas)
+    k = 4 * views + sum(len(f) for f in free)
+    A = np.zeros((n, 2 * views, k))
+    col = 4 * views
+    for v in range(views):
+        A[:, 2 * v:2 * v + 2, 4 * v:4 * v + 4] = a
+        for axis in free[v]:  # moving T along axis moves each point by -w0 there
+            A[:, 2 * v + axis, col] = -w0
+            col += 1
+    c = np.concatenate([_depth_columns(p, t) for t in T], axis=1)  # (N, 2V)
+    d = np.concatenate(deltas, axis=1)
+    cc = np.maximum((c * c).sum(axis=1), 1e-300)
+    cA = np.einsum("ni,nij->nj", c, A)  # c^T A per point
+    cd = (c * d).sum(axis=1)
+    PA = A - c[:, :, None] * (cA / cc[:, None])[:, None, :]
+    Pd = d - c * (cd / cc)[:, None]
+    H = np.einsum("n,nij,nik->jk", weight, PA, PA)
+    g = np.einsum("n,nij,ni->j", weight, PA, Pd)
+    prior = floor**2 * float(weight.sum())
+    offsets = np.concatenate([t[f] for t, f in zip(T, free, strict=True)])
+    H[4 * views:, 4 * views:] += prior * np.eye(k - 4 * views)
+    g[4 * views:] -= prior * offsets
+    mean_row = (weight / cc) @ cA  # sum_i weight_i c_i^T A_i / |c_i|^2
+    kkt = np.zeros((k + 1, k + 1))
+    kkt[:k, :k], kkt[:k, k], kkt[k, :k] = H, mean_row, mean_row
+    inverse = np.linalg.inv(kkt)
+    x = (inverse @ np.append(g, float((weight / cc) @ cd)))[:k]
+    w = (cd - cA @ x) / cc
+    moves, col = [], 4 * views
+    for f in free:
+        moves.append(x[col:col + len(f)])
+        col += len(f)
+    return ([x[4 * v:4 * v + 4] for v in range(views)], w, moves,
+            np.diag(inverse)[:4 * views].copy())
 
 
 def _depth_columns(p: np.ndarray, T: np.ndarray) -> np.ndarray:
     """(N, 2): the normalised displacement of each point per unit of inverse depth for
     a camera moved to ``T``: ``-T_xy + T_z p``."""
     return -T[:2] + T[2] * p
-
-
-def _solve(A: np.ndarray, b: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """Weighted least squares by the normal equations (A: (M, 4), well conditioned)."""
-    Aw = A * weight[:, None]
-    return np.linalg.solve(Aw.T @ A, Aw.T @ b)
-
-
-def _translation(T: np.ndarray, free: list[int], p: np.ndarray, e: np.ndarray,
-                 w: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """``T`` with its ``free`` components fitted by weighted least squares to the
-    residuals ``e`` (N, 2) of the turn and scale, given the inverse depths ``w``:
-    each free component k moves match i by ``-w_i`` along image axis k."""
-    fixed = T.copy()
-    fixed[free] = 0.0
-    rest = e - w[:, None] * _depth_columns(p, fixed)
-    out = T.copy()
-    for k in free:
-        den = float(np.sum(weight * w * w))
-        out[k] = -float(np.sum(weight * w * rest[:, k])) / den if den > 0 else 0.0
-    return out
 
 
 def _cauchy(residual: np.ndarray, floor: float) -> np.ndarray:

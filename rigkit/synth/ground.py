@@ -314,7 +314,8 @@ def make_ground(
         patches=first_texture + 1,
     )
     if params.sky > 0:
-        ground = replace(ground, rim=(_rim_at_row(ground, v_sky, (params.width - 1) / 2 / f), rim_waves))
+        half_u = (params.width - 1) / 2 / f
+        ground = replace(ground, rim=(_rim_at_row(ground, v_sky, half_u), rim_waves))
     boxes, spheres = [], []
     for i in range(params.n_boxes):
         X, Z = _place(ground, rng, near, 0.95 * far, f, params.width)

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from rigkit.errors import PipelineError
-from rigkit.pipeline.checks import affine_scale
 from rigkit.pipeline.features import (
     _check_alignment,
     _ratio_matches,
@@ -72,13 +71,6 @@ def test_an_alignment_no_rig_gives_is_refused() -> None:
     with pytest.raises(PipelineError, match="no rig gives"):
         _check_alignment(mirror, "left/back")
     _check_alignment(np.array([[0.993, -0.05, 3.0], [0.05, 0.993, -2.0]]), "left/back")
-
-
-def test_scale_of_a_view_is_read_along_the_columns() -> None:
-    # A facade turned away from the rig compresses the right view along the rows only.
-    assert affine_scale(np.array([[0.981, 0.0, 0.0], [0.0, 1.0, 0.0]])) == pytest.approx(1.0)
-    turned = 0.993 * np.array([[np.cos(0.1), -np.sin(0.1), 0], [np.sin(0.1), np.cos(0.1), 0]])
-    assert affine_scale(turned) == pytest.approx(0.993)
 
 
 def _whole_image_contrast(image: np.ndarray, window: int = 31) -> np.ndarray:
