@@ -14,7 +14,8 @@ front end gets the same answers:
   pseudo-rectified (a camera only turned then leaves nothing but the matches' noise)
   and the spread of their disparities against that noise. A spread no larger than
   noise means the tripod was not moved or the same view was taken twice; one clear of
-  noise but too small for depth, a scene with little depth in view;
+  noise but under half a pixel, a scene with little depth in view, said but not
+  refused (the back view gives a flat scene's range);
 * after the back frame: its magnification m against the left view, below 1 because the
   back camera is ``C_lb`` behind, and the range it implies, z = m C_lb / (1 - m) (an
   object at depth z from the left camera is at z + C_lb from the back one; the paper's
@@ -226,9 +227,10 @@ def right_checks(view: ViewMap, profile: RigProfile | None = None) -> list[Findi
         return [*checks, scale]  # a magnified view's parallax means nothing
     if view.parallax is not None:
         problem = view.parallax.problem()
+        note = view.parallax.little_relief()
         checks.insert(0, Finding("parallax", problem[0], redo=problem[1]) if problem else
-                      Finding("parallax", f"parallax {view.parallax.spread_px:.1f} px across "
-                              "the scene", ok=True))
+                      Finding("parallax", note or f"parallax {view.parallax.spread_px:.1f} px "
+                              "across the scene", ok=True))
     return checks
 
 

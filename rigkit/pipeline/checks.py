@@ -20,10 +20,11 @@ from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, apply_homography
 
 MIN_PARALLAX_PX = 0.5
-"""Least depth relief the method measures: the spread (5th to 95th percentile) of the
-matches' rectified disparities, full-resolution px (a scene whose depths span 1.6 % at
-300 m, seen 2 m apart at f = 14,650 px, spreads them over 1.6 px and gives 98.8 % of its
-pixels within 1 %)."""
+"""Depth relief below which a scene is called nearly flat: the spread (5th to 95th
+percentile) of the matches' rectified disparities beyond their noise, full-resolution
+px (a scene whose depths span 1.6 % at 300 m, seen 2 m apart at f = 14,650 px, spreads
+them over 1.6 px and gives 98.8 % of its pixels within 1 %). Less is no refusal: the
+back view's magnification gives the range of a flat scene too; the run says so."""
 NOISE_SPAN = 3.29
 """The 5th to 95th percentile span of a normal distribution, in standard deviations."""
 TRACKING_FLOOR_PX = 0.01
@@ -103,7 +104,8 @@ class Parallax:
     noise; depth relief seen from C_lr apart adds to it. A flat scene square to the view
     has no relief either, so a spread as small as noise cannot tell a tripod that was not
     moved from a flat scene; one clear of noise whose relief (:attr:`relief_px`) is under
-    :data:`MIN_PARALLAX_PX` is a moved tripod before a scene with little depth.
+    :data:`MIN_PARALLAX_PX` is a moved tripod before a scene with little depth, whose
+    range the back view gives (:meth:`little_relief`).
     """
 
     spread_px: float
@@ -121,22 +123,29 @@ class Parallax:
 
     def problem(self) -> tuple[str, str] | None:
         """What is wrong (a message and what to redo), or None where the disparities
-        spread clear of noise and, beyond it, by :data:`MIN_PARALLAX_PX`. The one rule
+        spread clear of noise: the right frame was taken from elsewhere. The one rule
         of the on-site check (:mod:`rigkit.capture.field`) and of processing
-        (:func:`check_parallax`)."""
-        if self.moved and self.relief_px >= MIN_PARALLAX_PX:
-            return None
+        (:func:`check_parallax`). A scene with little relief is no problem: the back
+        view's magnification gives its range (:meth:`little_relief`)."""
         if self.moved:
-            return (f"little depth in view: the right frame moved ({self.relief_px:.2f} px "
-                    f"of parallax), but the scene is nearly flat (depth needs "
-                    f"{MIN_PARALLAX_PX:g} px)",
-                    "aim where near and far things share the view, and take the three "
-                    "frames again")
+            return None
         return (f"no parallax: the disparities vary by {self.spread_px:.2f} px, no more "
                 f"than the matches' noise ({self.noise_px:.2f} px): the tripod was not "
                 "moved, or the same view was taken twice",
                 "move the tripod by C_lr to the right of the left position and take the "
                 "right frame again")
+
+    def little_relief(self) -> str | None:
+        """One line where the right frame moved but the scene's relief spreads the
+        disparities by less than :data:`MIN_PARALLAX_PX` beyond noise: its range still
+        comes from the back view's magnification (the paper's point), but depth
+        differences within it are hardly resolved; else None."""
+        if not self.moved or self.relief_px >= MIN_PARALLAX_PX:
+            return None
+        return (f"little depth in view: {self.relief_px:.2f} px of parallax across the scene "
+                f"(under {MIN_PARALLAX_PX:g} px): its range comes from the back view's "
+                "magnification, but depth differences within it are barely resolved (aim "
+                "where near and far things share the view for relief)")
 
 
 def measure_parallax(matches: Matches, rect: Rectification, reduction: float = 1.0
@@ -153,13 +162,15 @@ def measure_parallax(matches: Matches, rect: Rectification, reduction: float = 1
     return Parallax(float(hi - lo) * reduction, noise * reduction)
 
 
-def check_parallax(matches: Matches, rect: Rectification) -> None:
-    """PipelineError where the left/right ``matches`` show too little parallax for depth
-    (:meth:`Parallax.problem`)."""
-    problem = measure_parallax(matches, rect).problem()
+def check_parallax(matches: Matches, rect: Rectification) -> Parallax:
+    """The left/right ``matches``' :class:`Parallax` under ``rect``; PipelineError where
+    it shows that the right frame was not taken from elsewhere (:meth:`Parallax.problem`)."""
+    parallax = measure_parallax(matches, rect)
+    problem = parallax.problem()
     if problem is not None:
         message, redo = problem
         raise PipelineError(f"left/right: {message} ({redo})")
+    return parallax
 
 
 def check_magnification(scale: float, baseline_lb_m: float, sigma: float = 0.0) -> float:

@@ -14,7 +14,7 @@ from rigkit.errors import InputError, PipelineError
 from rigkit.geometry import NO_DISTORTION, Distortion
 from rigkit.pipeline.agreement import view_agreement
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
-from rigkit.pipeline.checks import check_distinct, check_parallax, check_roles
+from rigkit.pipeline.checks import Parallax, check_distinct, check_parallax, check_roles
 from rigkit.pipeline.depth import to_left
 from rigkit.pipeline.distortion import LensFit, refine_lens, three_view_tracks
 from rigkit.pipeline.features import Matches, match_all
@@ -59,6 +59,8 @@ class DepthResult:
     ``offset_depth_fraction``: the relative depth error (one sigma, unitless) that the
     disparity offset's uncertainty alone leaves at that depth; it is the same for
     every pixel of that depth, so averaging over pixels does not reduce it.
+    ``parallax``: the left/right disparities' spread (:class:`~rigkit.pipeline.checks.
+    Parallax`; a nearly flat scene: :meth:`relief_warning`).
     """
 
     depth: np.ndarray
@@ -78,6 +80,7 @@ class DepthResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     median_depth_m: float = float("nan")
     offset_depth_fraction: float = float("nan")
+    parallax: Parallax | None = None
 
     def flags(self) -> np.ndarray:
         """(H, W) uint8, what each pixel's depth rests on, as bits (``FLAG_*``): matched
@@ -93,6 +96,10 @@ class DepthResult:
     def offset_warning(self, frames: int = 1) -> str | None:
         """See :func:`offset_warning`; ``frames`` per position were stacked."""
         return offset_warning(self.offset_depth_fraction, self.offset_sources(), frames)
+
+    def relief_warning(self) -> str | None:
+        """One line where the scene is nearly flat (:meth:`Parallax.little_relief`)."""
+        return self.parallax.little_relief() if self.parallax is not None else None
 
     def offset_sources(self) -> dict[str, float]:
         """What the disparity offset's standard error is made of (px, one sigma each,
@@ -144,6 +151,9 @@ class DepthResult:
                 "R_lr": r.R_lr.tolist(),
                 "R_rect": r.R_rect.tolist(),
             },
+            "parallax_px": None if self.parallax is None else {
+                "spread": self.parallax.spread_px, "noise": self.parallax.noise_px,
+                "relief": self.parallax.relief_px},
             "density": float(valid.mean()),
             "no_surface_fraction": float(self.no_surface.mean()),
             "views_disagree_fraction": float(self.disagree.mean()),
@@ -269,7 +279,7 @@ def estimate_depth(
         lap("lens", 0.25)
     m_lr, m_lb = _ideal(raw_lr, lens, right_lens), _ideal(raw_lb, lens, back_lens)
     rect = pseudo_rectify(m_lr, rig.focal_px, size, s, lens)
-    check_parallax(m_lr, rect)
+    parallax = check_parallax(m_lr, rect)
     scale = s.stereo_scale
     rl, rr = warp_pair(left, right, rect, scale, lens, right_lens)
     lap("rectification", 0.35)
@@ -331,6 +341,7 @@ def estimate_depth(
         timings_s=timings,
         median_depth_m=z_median,
         offset_depth_fraction=offset_fraction,
+        parallax=parallax,
     )
 
 
