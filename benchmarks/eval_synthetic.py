@@ -115,7 +115,7 @@ KINDS = {
     "receding": Kind(False, 1, GROUND, "901-912", ranges=RECEDING),
     "receding-field": Kind(True, 1, GROUND, "921-932", ranges=RECEDING),
     "receding-burst": Kind(True, 5, GROUND, "941-952", ranges=RECEDING),
-    "low-relief": Kind(False, 1, (), "961-980", ranges=(("relief", 0.001, 0.006),)),
+    "low-relief": Kind(False, 1, (), "961-980", ranges=(("relief", 0.0005, 0.003),)),
 }
 """The kinds ``--kind`` names (docs/results-log.md: "The world moves, other air, lenses
 that do not fit" and issue 35)."""
