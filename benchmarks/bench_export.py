@@ -2,12 +2,14 @@
 
     python benchmarks/bench_export.py --work out/bench-export
     python benchmarks/bench_export.py --work out/bench-export --frame camera --format ply
+    python benchmarks/bench_export.py --work out/bench-export --format las,dsm --crs EPSG:2056
 
 Builds (once) a session on rigs/p1000-tripod.yaml whose results are a synthetic depth
 map (a slanted hillside at 250-350 m with 20 % of the pixels, the sky, without depth),
 a tripod position and three targets with laser azimuths and inclinations, then exports
-it and prints the points, the time and the process's peak resident memory (which
-includes the memory-mapped depth and sigma maps it has read).
+it and prints the points, the time (wall and CPU: the machine may be shared) and the
+process's peak resident memory (which includes the memory-mapped depth and sigma maps it
+has read).
 """
 
 from __future__ import annotations
@@ -27,7 +29,6 @@ from rigkit.capture import LaserReading, add_target, create_session, load_sessio
 from rigkit.capture.positioning import set_tripod_position
 from rigkit.capture.tripod import TripodPosition
 from rigkit.export import export_path
-from rigkit.rangefinder.ranging import left_camera_intrinsics
 
 RIG = Path(__file__).resolve().parents[1] / "rigs" / "p1000-tripod.yaml"
 LOOK_AZIMUTH_DEG = 47.0
@@ -46,9 +47,11 @@ def build(path: Path) -> None:
     np.save(results / "depth.npy", depth.astype(np.float32))
     np.save(results / "sigma.npy", (0.005 * depth).astype(np.float32))
     cv2.imwrite(str(results / "grey.png"), ((u + v) % 256).astype(np.uint8))
-    (results / "depth.json").write_text(json.dumps({"run_id": "bench"}))
+    frames = {pos: [] for pos in ("left", "right", "back")}  # the session has none
+    (results / "depth.json").write_text(json.dumps({"run_id": "bench", "frames": frames}))
     set_tripod_position(path, TripodPosition(46.55, 7.98, 1012.0, "manual", "bench"))
-    f, cx, cy = left_camera_intrinsics(session.rig(), (width, height))
+    camera = session.rig().intrinsics((width, height))
+    f, cx, cy = camera.focal_px, camera.cx_px, camera.cy_px
     for name, (pu, pv) in {"A": (300, 3000), "B": (4300, 900), "C": (4400, 3300)}.items():
         x, y, z = (pu - cx) / f, (pv - cy) / f, 1.0  # level camera looking at 47 deg
         along = math.hypot(x, y, z)
@@ -65,6 +68,7 @@ def main() -> None:
     parser.add_argument("--format", default="ply,las,laz,tif")
     parser.add_argument("--frame", default="map", choices=("camera", "map"))
     parser.add_argument("--step", type=int, default=1)
+    parser.add_argument("--crs", help="the map's CRS (default: the UTM zone)")
     args = parser.parse_args()
     session = args.work / "session"
     if not (session / "results" / "depth.npy").is_file():
@@ -72,13 +76,19 @@ def main() -> None:
         args.work.mkdir(parents=True, exist_ok=True)
         build(session)
     out = args.work / "out"
-    t0 = time.perf_counter()
-    done = export_path(session, out, args.format.split(","), step=args.step, frame=args.frame)
-    seconds = time.perf_counter() - t0
+    extra = {}
+    if args.crs is not None:
+        from rigkit.export import MapRequest
+
+        extra["request"] = MapRequest(crs=args.crs)
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    done = export_path(session, out, args.format.split(","), step=args.step, frame=args.frame,
+                       **extra)
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     sizes = ", ".join(f"{p.suffix[1:]} {p.stat().st_size / 1e6:.0f} MB" for p in done.files)
-    print(f"{done.points} points ({args.frame} frame, step {args.step}) in {seconds:.1f} s, "
-          f"peak RSS {peak:.0f} MB; {sizes}")
+    print(f"{done.points} points ({args.frame} frame, step {args.step}) in {seconds:.1f} s "
+          f"({cpu:.1f} CPU s), peak RSS {peak:.0f} MB; {sizes}")
     if done.georef is not None:
         fit = done.georef.orientation
         print(f"orientation: residual RMS {fit.rms_residual_deg:.4f} deg, pointing "

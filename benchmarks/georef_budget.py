@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
+from rigkit.capture.tripod import enu_direction
 from rigkit.export.georef import (
     MIN_SPREAD_DEG,
     MIN_SPREAD_FRACTION,
-    enu_direction,
     wahba_rotation,
 )
 from rigkit.rig import load_rig

@@ -39,9 +39,10 @@ from rigkit.capture.session import (
 from rigkit.core.files import Content, check_free_space, replace_folder
 from rigkit.core.safefs import check_regular
 from rigkit.errors import InputError
+from rigkit.export.runinfo import run_info
 from rigkit.reporting.previews import preview_set
-from rigkit.reporting.scale import RunReference, run_scale_note
-from rigkit.reporting.verdict import Verdict, judge
+from rigkit.reporting.scale import RunReference
+from rigkit.reporting.verdict import Verdict, session_verdict
 
 StageReport = Callable[[str, float], None]
 RESULT_BYTES_PER_PIXEL = 13
@@ -126,13 +127,17 @@ def _process_locked(
     except InputError as exc:
         raise InputError(f"{session.path}: {exc}") from None
     result = run.result
+    meta = {"run_id": run_id, "rigkit_version": __version__, "time_utc": utc_now(),
+            **run.metadata()}
+    height, width = result.depth.shape
+    lens = run_info(meta, (width, height), session.path / RESULTS_DIR / "depth.json",
+                    run.profile).lens  # the lens rigkit export will back-project through
     rows = tuple(
-        compare_target(session, target, result.depth, result.sigma, run_id)
+        compare_target(session, target, result.depth, result.sigma, run_id, lens,
+                       (result.offset_depth_fraction, result.median_depth_m))
         for target in session.targets
     )
     report("writing results", 0.92)
-    meta = {"run_id": run_id, "rigkit_version": __version__, "time_utc": utc_now(),
-            **run.metadata()}
     files: dict[str, Content] = {
         "depth.npy": result.depth,
         "sigma.npy": result.sigma,
@@ -152,8 +157,8 @@ def _process_locked(
     report("done", 1.0)
     density = float(np.isfinite(result.depth).mean())
     reference = RunReference(result.median_depth_m, result.offset_depth_fraction)
-    verdict = judge(rows, run.profile, frames=run.burst_length, shortfalls=run.shortfalls,
-                    scale=run_scale_note(rows, run.profile, reference))
+    verdict = session_verdict(session, rows, profile=run.profile, frames=run.burst_length,
+                              shortfalls=run.shortfalls, reference=reference)
     return Outcome(
         session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
         seconds, rows, (*run.warnings, *stray_warnings(session)), verdict,

@@ -17,7 +17,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
+from rigkit.capture.comparisons import LOG_NAME, SIGNIFICANT_DIGITS, append_rows, read_rows
 from rigkit.capture.exif import ExifInfo, read_exif
 from rigkit.capture.frames import FrameFile, capture_problems
 from rigkit.capture.imagesize import check_before_copy
@@ -259,11 +259,27 @@ def stale_results(session: Session, with_targets: bool = True) -> str | None:
         rows = read_rows(done) if done.is_file() else []
     except InputError:
         return f"results/{LOG_NAME} is unreadable; process again"
-    compared = {(r.target, r.u, r.v, r.laser_readings) for r in rows}
-    targets = {(t.name, t.pixel[0], t.pixel[1], len(t.readings)) for t in session.targets}
+    compared = {(r.target, r.u, r.v, r.laser_readings, _log_range(r.laser_range_m))
+                for r in rows}
+    targets = {(t.name, t.pixel[0], t.pixel[1], len(t.readings), _log_range(_median_m(t)))
+               for t in session.targets}
     if compared != targets:
         return f"results/ are from run {run}, before the targets changed; process again"
     return None
+
+
+def _median_m(target: Target) -> float:
+    """The median of a target's readings, m (NaN without one): its laser range in a run."""
+    values = sorted(r.slope_distance_m for r in target.readings)
+    if not values:
+        return math.nan
+    middle = len(values) // 2
+    return values[middle] if len(values) % 2 else (values[middle - 1] + values[middle]) / 2
+
+
+def _log_range(value: float) -> str:
+    """A range as the comparisons log keeps it (its significant digits; "nan")."""
+    return "nan" if not math.isfinite(value) else f"{value:.{SIGNIFICANT_DIGITS}g}"
 
 
 def session_frames(session: Session) -> dict[str, tuple[FrameFile, ...]]:

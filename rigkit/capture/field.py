@@ -264,7 +264,7 @@ def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
         ))
         return checks
     z = implied_range_m(view.scale, c_lb)
-    text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {c_lb:.1f} m"
+    text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {c_lb:.3f} m"
     nominal = profile.nominal_range_m
     if nominal is not None and not nominal / RANGE_FACTOR <= z <= nominal * RANGE_FACTOR:
         checks.append(Finding(

@@ -104,4 +104,6 @@ def _outcome_lines(outcome: Any) -> list[str]:
     lines.append(f"       verdict: {outcome.verdict.headline}")
     if outcome.verdict.scale:
         lines.append(f"       scale: {outcome.verdict.scale}")
+    if outcome.verdict.source:
+        lines.append(f"       rig scale {outcome.verdict.source}")
     return lines

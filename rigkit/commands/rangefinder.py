@@ -18,6 +18,8 @@ SIM_OPTIONS: dict[str, str] = {
     "lat": "gps: latitude in degrees, north positive (default 46.5)",
     "lon": "gps: longitude in degrees, east positive (default 7.5)",
     "height": "gps: height above mean sea level in metres (default 500)",
+    "geoid": "gps: the geoid's height above the WGS 84 ellipsoid in metres, GGA's geoid "
+    "separation (default 47.3)",
     "inclination": "trupulse: inclination in degrees, positive up (default 1.2)",
     "azimuth": "trupulse: azimuth in degrees (default 47.3)",
     "unit": "trupulse: unit the device sends, M, F or Y (default M)",

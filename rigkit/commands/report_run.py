@@ -25,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.capture.comparisons import csv_text
     from rigkit.errors import InputError
     from rigkit.reporting.plots import plot_error_vs_range, plot_estimate_vs_laser, render
-    from rigkit.reporting.scale import session_scale_note
+    from rigkit.reporting.scale import calibration_rows, session_scale_note
     from rigkit.reporting.summary import collect, format_text, summarize
 
     if not args.sessions:
@@ -40,7 +40,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"no comparisons in {', '.join(map(str, args.sessions))} (an empty "
                          "log, or every row damaged): nothing to report; rigkit process a "
                          "session with laser targets first")
-    text = format_text(rows, summarize(rows))
+    calibrated = calibration_rows(args.sessions)
+    counted = [r for r in rows if (r.session, r.target) not in calibrated]
+    text = format_text(rows, summarize(counted), calibrated)
     notes = [(path, session_scale_note(path)) for path in dict.fromkeys(args.sessions)]
     text += "".join(f"scale of {path}: {note}\n" for path, note in notes if note)
     files: dict[str, str | bytes] = {"comparisons.csv": csv_text(rows), "report.txt": text}

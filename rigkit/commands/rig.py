@@ -116,13 +116,20 @@ _CALIBRATE_EPILOG = """\
 examples:
   rigkit rig calibrate capture/ridge-0412 --out rigs/ridge-0412.yaml   # taped anew
   rigkit rig calibrate capture/van-* --out rigs/van-2026.yaml          # one fixed rig
+  rigkit rig calibrate capture/van-1 --check-session capture/van-2 --out rigs/van.yaml
+  rigkit rig calibrate capture/ridge-0412 --hold-out T5 --out rigs/ridge.yaml
 
-Fits C_lb (the depth maps' scale), and f*C_lr where the targets span enough depth, from
-the sessions' latest laser comparisons (process them first), each weighted by its laser
-accuracy and depth sigma; a target far off the others' fit is named and left out, and
-targets that disagree beyond their sigma stop it. Each target is checked by the fit
-made without it. Then: rigkit session set-rig SESSION --rig OUT; rigkit process SESSION.
-exit status: 0 written, 2 refused (nothing written). docs/rig-profiles.md, "Calibrating".
+Adjusts C_lb (the depth maps' scale), and f*C_lr where the targets determine it better
+than the profile does, from each session's current run (process them first): every
+target a row weighted by its laser accuracy and its window median's measured scatter,
+the profile's tolerances rows too (the tape's, the lens spec's). A blunder (standardised
+residual beyond 3.29) is named and left out; one that cannot be told from another row,
+or a profile value beyond its tolerance, stops it (--beyond-tolerance lets the lasers
+overrule the profile). Each target is checked by the fit without it and its twins;
+held-out targets and check sessions only check it. Then: rigkit session set-rig SESSION
+--rig OUT; rigkit process SESSION.
+exit status: 0 written, 1 nothing better than the tape to write, 2 refused (nothing
+written). docs/rig-profiles.md, "Calibrating the scale from the laser".
 """
 
 
@@ -131,7 +138,8 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
         "calibrate",
         help="fit the rig's scale (C_lb, f*C_lr) from sessions' laser targets",
         description="Write a rig profile whose C_lb (and f*C_lr, where the targets see it)\n"
-                    "the sessions' laser targets fit, with the tolerances the fit leaves.",
+                    "the sessions' laser targets fit, with the tolerances the fit leaves,\n"
+                    "and a report of the adjustment like an instrument's calibration.",
         epilog=_CALIBRATE_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -140,6 +148,16 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     calibrate.add_argument("--out", type=Path, required=True, help="the profile to write")
     calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
                            help="one laser reading's one-sigma error, m (default 0.3)")
+    calibrate.add_argument("--hold-out", action="append", default=[], metavar="TARGET",
+                           help="a target (T3, or SESSION/T3) kept out of the fit and checked "
+                                "against it (repeatable)")
+    calibrate.add_argument("--check-session", action="append", default=[], type=Path,
+                           metavar="SESSION",
+                           help="a processed session of the same rig whose targets only "
+                                "check the fit (repeatable)")
+    calibrate.add_argument("--beyond-tolerance", action="store_true",
+                           help="let the lasers overrule a profile value they find beyond "
+                                "its tolerance (the tape was wrong) instead of refusing")
     calibrate.add_argument("--force", action="store_true", help="overwrite --out")
     calibrate.set_defaults(runner="rigkit.commands.rig_run:run_calibrate")
 

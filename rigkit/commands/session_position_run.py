@@ -23,18 +23,22 @@ def run_set_position(args: argparse.Namespace) -> int:
     from rigkit.capture import load_session
     from rigkit.capture.positioning import set_tripod_position
     from rigkit.errors import InputError
-    from rigkit.export.georef import utm_epsg
+    from rigkit.export.crs import utm_epsg
 
     typed = [args.lat, args.lon, args.height_m]
-    if args.gps is not None and any(v is not None for v in typed):
-        raise InputError("give --lat, --lon and --height-m, or --gps, not both")
+    if args.gps is not None and any(v is not None for v in [*typed, args.height_datum]):
+        raise InputError("give --lat, --lon and --height-m (and --height-datum), or --gps, "
+                         "not both")
     if args.gps is None and any(v is None for v in typed):
         raise InputError("give all of --lat, --lon and --height-m, or --gps URL")
     load_session(args.session)  # a clear error for a bad session before a GPS wait
     position = _from_gps(args) if args.gps is not None else _typed(args)
     set_tripod_position(args.session, position)
+    separation = ("" if position.geoid_separation_m is None
+                  else f", geoid {position.geoid_separation_m:.2f} m above the ellipsoid")
     print(f"tripod at {position.lat_deg:.7f}, {position.lon_deg:.7f}, "
-          f"{position.height_m:.2f} m ({position.source})")
+          f"{position.height_m:.2f} m ({position.source}; height {position.height_datum}"
+          f"{separation})")
     try:
         utm_epsg(position.lat_deg, position.lon_deg)
     except InputError as exc:  # recorded all the same: it is where the tripod stood
@@ -45,14 +49,21 @@ def run_set_position(args: argparse.Namespace) -> int:
 
 def _typed(args: argparse.Namespace) -> Any:
     from rigkit.capture import utc_now
-    from rigkit.capture.tripod import TripodPosition
+    from rigkit.capture.tripod import HEIGHT_UNKNOWN, TripodPosition, check_height_datum
+    from rigkit.export.crs import vertical_crs
 
-    return TripodPosition(args.lat, args.lon, args.height_m, "manual", utc_now())
+    datum = HEIGHT_UNKNOWN
+    if args.height_datum is not None:
+        datum = check_height_datum(args.height_datum)
+        if datum.startswith("EPSG:"):
+            vertical_crs(datum, "--height-datum")  # one PROJ knows, before it is recorded
+    return TripodPosition(args.lat, args.lon, args.height_m, "manual", utc_now(),
+                          height_datum=datum)
 
 
 def _from_gps(args: argparse.Namespace) -> Any:
     from rigkit.capture import utc_now
-    from rigkit.capture.tripod import TripodPosition
+    from rigkit.capture.tripod import HEIGHT_GPS, TripodPosition
     from rigkit.rangefinder.framing import escape_bytes
     from rigkit.rangefinder.gps import mean_position, open_gps
 
@@ -62,6 +73,7 @@ def _from_gps(args: argparse.Namespace) -> Any:
             fixes.append(gps.read())
             print(f"fix {len(fixes)}/{args.fixes}: {fixes[-1].lat_deg:.7f}, "
                   f"{fixes[-1].lon_deg:.7f}, {fixes[-1].satellites} satellites", flush=True)
-    lat, lon, height = mean_position(fixes)
-    return TripodPosition(lat, lon, height, f"gps:{args.gps}", utc_now(), fixes=len(fixes),
-                          raw=escape_bytes(fixes[-1].raw))
+    mean = mean_position(fixes)
+    return TripodPosition(mean.lat_deg, mean.lon_deg, mean.height_m, f"gps:{args.gps}",
+                          utc_now(), fixes=mean.count, raw=escape_bytes(fixes[-1].raw),
+                          geoid_separation_m=mean.geoid_separation_m, height_datum=HEIGHT_GPS)

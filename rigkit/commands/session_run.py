@@ -198,10 +198,13 @@ def _show_data(session: Any) -> dict[str, Any]:
     from dataclasses import asdict
 
     from rigkit.capture import frame_problems, session_to_data
+    from rigkit.reporting.scale import calibration_targets, scale_source
 
     data = session_to_data(session)
     data["problems"] = frame_problems(session)
     data["last_run"] = [asdict(row) for row in _last_rows(session)]
+    data["scale"] = scale_source(session.rig())
+    data["calibration_targets"] = sorted(calibration_targets(session.rig(), session))
     return data
 
 
@@ -232,10 +235,15 @@ def _show_text(session: Any) -> str:
     rig = session.rig()
     lines.append(f"  rig      {rig.name} (from {session.rig_reference}): f {rig.focal_px:.1f} "
                  f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
+    from rigkit.reporting.scale import calibration_targets, scale_source
+
+    lines.append(f"  scale    {scale_source(rig)}")
     if session.tripod is not None:
         t = session.tripod
+        geoid = ("" if t.geoid_separation_m is None
+                 else f", geoid {t.geoid_separation_m:.2f} m above the ellipsoid")
         lines.append(f"  tripod   {t.lat_deg:.7f}, {t.lon_deg:.7f}, {t.height_m:.2f} m "
-                     f"({t.source})")
+                     f"({t.source}; height {t.height_datum}{geoid})")
     lines.append("frames")
     for position in POSITIONS:
         burst = session.bursts.get(position, ())
@@ -260,13 +268,15 @@ def _show_text(session: Any) -> str:
     lines.append("status   " + ("; ".join(problems) if problems else _processed(session, stale)))
     for note in filter(None, (lock_holder(session.path), stale)):
         lines.append(f"         {note}")
-    from rigkit.reporting.verdict import row_label
+    from rigkit.reporting.verdict import CALIBRATED_LABEL, row_label
 
     rows = _last_rows(session)
+    used = calibration_targets(rig, session)
     if rows:
         lines.append(f"last run {rows[0].run_id}")
         for row in rows:
+            mark = f" ({CALIBRATED_LABEL})" if row.target in used else ""
             lines.append(f"  {row.target:<8} laser {row.laser_range_m:9.2f} m  estimate "
                          f"{row.estimate_range_m:9.2f} m  error {row.error_pct:+6.2f} %  "
-                         f"{row_label(row)}")
+                         f"{row_label(row)}{mark}")
     return "\n".join(lines)

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 from typing import Any
 
 
 def _rig_settings(path: Path) -> dict[str, float]:
-    import math
-
     from rigkit.rig import load_rig
 
     rig = load_rig(path)
@@ -112,6 +111,40 @@ def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
     return replace(params, **changes)
 
 
+def _placement(args: argparse.Namespace) -> Any:
+    """--position and --pointing as a placement on the map (None without --position);
+    InputError naming the option whose numbers are not."""
+    from rigkit.capture.tripod import GEOID_RANGE_M, check_direction, check_position
+    from rigkit.errors import InputError
+    from rigkit.synth.placement import Placement
+
+    if args.position is None:
+        return None
+    position = _numbers(args.position, "--position", (3, 4))
+    pointing = _numbers(args.pointing, "--pointing", (2, 3))
+    check_position(*position[:3])
+    if len(position) == 4 and not GEOID_RANGE_M[0] <= position[3] <= GEOID_RANGE_M[1]:
+        raise InputError(f"--position geoid {position[3]:g}: expected {GEOID_RANGE_M[0]:g} "
+                         f"to {GEOID_RANGE_M[1]:g} m")
+    check_direction(pointing[0] % 360.0, pointing[1])
+    return Placement(position[0], position[1], position[2], azimuth_deg=pointing[0] % 360.0,
+                     elevation_deg=pointing[1], roll_deg=pointing[2] if len(pointing) == 3 else 0.0,
+                     geoid_separation_m=position[3] if len(position) == 4 else None)
+
+
+def _numbers(text: str, option: str, counts: tuple[int, ...]) -> list[float]:
+    from rigkit.errors import InputError
+
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in counts or not all(math.isfinite(v) for v in values):
+        raise InputError(f"{option} {text!r}: expected {' or '.join(map(str, counts))} "
+                         "comma-separated numbers")
+    return values
+
+
 MAX_TARGETS = 1000
 """The most laser targets a synthetic session gets (each is a line of session.yaml)."""
 
@@ -129,10 +162,14 @@ def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
                              "not be negative")
         session = write_synthetic_session(
             scene, args.out_dir, n_targets=args.targets, laser_sigma_m=args.laser_noise,
-            seed=args.seed, progress=progress,
+            seed=args.seed, progress=progress, placement=_placement(args),
         )
         what = f"session with {len(session.targets)} targets"
+        if session.tripod is not None:
+            what += f", on the map at {session.tripod.lat_deg:g}, {session.tripod.lon_deg:g}"
     else:
+        if args.position is not None:
+            raise InputError("--position places a --session on the map: add --session")
         write_scene(scene, args.out_dir, progress)
         what = "scene"
     return what

@@ -16,11 +16,13 @@ from rigkit.batch import (
     process_session,
     run_batch,
 )
+from rigkit.batch.compare import SCATTER_GAIN, median_scatter
 from rigkit.capture import Target, load_session
 from rigkit.capture.comparisons import LOG_NAME, SIGNIFICANT_DIGITS, latest_run, read_rows
 from rigkit.cli import main
 from rigkit.core.files import recover_folder
 from rigkit.errors import InputError
+from rigkit.pipeline.lens import Lens
 from tests.conftest import copy_session
 
 
@@ -186,14 +188,49 @@ def test_range_from_depth_on_a_plane(synth_session: Path) -> None:
     depth = np.full((720, 960), 300.0, np.float32)
     sigma = np.full((720, 960), 1.5, np.float32)
     target = Target("A", (900.0, 40.0), 9, session.targets[0].readings)
-    row = compare_target(session, target, depth, sigma, "run")
+    lens = Lens(f, (960, 720))
+    row = compare_target(session, target, depth, sigma, "run", lens)
     x, y = (900.0 - 479.5) / f, (40.0 - 359.5) / f
     expected = 300.0 * math.sqrt(1 + x * x + y * y)
     assert row.estimate_range_m == pytest.approx(expected, rel=1e-9)
-    assert row.estimate_sigma_m == pytest.approx(1.5 * expected / 300.0)
+    # A plane scatters nothing: the median's sigma is the per-pixel one over the root of
+    # the window's pixels (the least it could be), with the offset's share added.
+    own = 1.2533 * 1.5 / 9
+    assert row.estimate_sigma_m == pytest.approx(own * expected / 300.0)
+    offset_row = compare_target(session, target, depth, sigma, "run", lens, (0.004, 300.0))
+    assert offset_row.estimate_sigma_m == pytest.approx(
+        math.hypot(own, 1.2) * expected / 300.0)
+    # Through a bent lens: the recorded pixel's ray is the undistorted one.
+    bent = Lens(f, (960, 720), (40.0, 0.0, 0.0, 0.0, 0.0))
+    row = compare_target(session, target, depth, sigma, "run", bent)
+    x, y = (bent.to_ideal(np.array([[900.0, 40.0]]))[0] - [479.5, 359.5]) / f
+    assert row.estimate_range_m == pytest.approx(300.0 * math.sqrt(1 + x * x + y * y),
+                                                 rel=1e-12)
+    assert row.estimate_range_m < expected - 1e-3  # the lens pushed the corner outwards
     depth[:, :] = np.nan
-    row = compare_target(session, target, depth, sigma, "run")
+    row = compare_target(session, target, depth, sigma, "run", Lens(f, (960, 720)))
     assert row.status == "no_estimate" and math.isnan(row.error_pct)
+
+
+def _blocky(sigma: float, side: int, seed: int, shape=(720, 960)) -> np.ndarray:
+    """300 m plus a tilt, plus an error constant over each ``side``-px block, one sigma
+    ``sigma`` (relative): each window-sized median is off by one draw of it."""
+    rng = np.random.default_rng(seed)
+    rows, cols = np.indices(shape)
+    blocks = rng.normal(0.0, sigma, (shape[0] // side + 1, shape[1] // side + 1))
+    return (300.0 + 0.01 * cols + 0.02 * rows) * (1 + blocks[rows // side, cols // side])
+
+
+def test_a_targets_sigma_is_what_its_windows_median_scatters() -> None:
+    """Errors shared by each window-sized patch, 0.2 % apart, on a sloping plane: the
+    measured sigma of a target's median is that 0.2 % (times the gain that covers what
+    scatters beyond its neighbourhood), whatever the per-pixel sigma says; 0 for none."""
+    found = [median_scatter(_blocky(0.002, 9, seed), 480 + 4, 360 + 4, 9)
+             for seed in range(12)]
+    assert np.median(found) == pytest.approx(SCATTER_GAIN * 0.002, rel=0.2)
+    assert median_scatter(_blocky(0.0, 9, 0), 484, 364, 9) == pytest.approx(0.0, abs=1e-9)
+    sky = np.full((720, 960), np.nan)
+    assert math.isnan(median_scatter(sky, 480, 360, 9))  # nothing measures it
 
 
 def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Path) -> None:

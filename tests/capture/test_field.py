@@ -156,7 +156,7 @@ def test_back_checks_give_the_implied_range_and_catch_a_wrong_back_frame() -> No
     profile = load_rig(SYNTHETIC)  # C_lb 2 m, nominal 300 m
     checks = back_checks(_view(scale=0.9931), profile)
     assert _failed(checks) == {}
-    assert "back view 0.9931× → ~290 m at C_lb = 2.0 m" in [c.message for c in checks]
+    assert "back view 0.9931× → ~290 m at C_lb = 2.000 m" in [c.message for c in checks]
     assert "magnification" in _failed(back_checks(_view(scale=1.002), profile))
     assert "magnification" in _failed(back_checks(_view(scale=0.96), profile))  # ~48 m
 
@@ -368,3 +368,15 @@ def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
         onsite_checks(session, position)
         views.check_image(session, frames_at(session, position)[-1])
     assert read == ["raw/left.png", "raw/right.png", "raw/back.png"]
+
+
+
+def test_the_back_check_gives_c_lb_as_the_profile_does() -> None:
+    """A profile's C_lb of 2.031 m is said as such, not "2.0" (issue 49, item 6)."""
+    from dataclasses import replace
+
+    from rigkit.rig import Baseline
+
+    profile = replace(load_rig(SYNTHETIC), baseline_lb=Baseline(2.031, 0.004))
+    messages = [c.message for c in back_checks(_view(scale=0.9931), profile)]
+    assert any("m at C_lb = 2.031 m" in m for m in messages)

@@ -105,3 +105,55 @@ def test_shortfalls_of_the_latest_run(tmp_path: Path) -> None:
     assert run_shortfalls(tmp_path) == ("the offset ...",)
     (results / "depth.json").write_text("{not json")
     assert run_shortfalls(tmp_path) == ()
+
+
+# ------------------------------------------------------------ targets that calibrated the rig
+
+
+def test_targets_that_calibrated_the_rig_are_shown_and_not_counted() -> None:
+    """After calibrating from a session, its own targets cannot prove the scale they
+    made (on 81dfff3: "4/6 within 1 %", counted as proof)."""
+    rows = [make_row(f"T{i}", 300.0, error) for i, error in enumerate((0.2, 0.3, 1.4), 1)]
+    verdict = judge(rows, SYNTHETIC, calibrated={"T1", "T2"})
+    assert verdict.headline == ("0/1 independent targets within 1 % (2 more calibrated the "
+                                "rig: not counted): capture again")
+    assert [t.calibrated for t in verdict.targets] == [True, True, False]
+    assert verdict.targets[0].label == "within 1 % (calibrated the rig: not a check)"
+    assert verdict.advice[0].startswith("T3: 1.40 %")
+    alone = judge(rows[:2], SYNTHETIC, calibrated={"T1", "T2"})
+    assert not alone.ok and alone.headline.startswith("no independent target: all 2")
+
+
+def _calibrated_session(tmp_path: Path):
+    """A session (two targets) whose rig's provenance names its frames and its T1."""
+    from rigkit.capture.actions import add_target, create_session
+    from rigkit.capture.session import LaserReading
+    from rigkit.reporting.scale import frames_fingerprint
+    from rigkit.rig.profile import Calibration, CalibrationSource
+
+    path = tmp_path / "ridge"
+    session = create_session(path, ROOT / "rigs" / "p1000-tripod.yaml")
+    for name, pixel in (("T1", (300.0, 260.0)), ("T2", (100.0, 320.0))):
+        session = add_target(session, name, pixel,
+                             readings=[LaserReading(300.0, "2026-04-12T08:01:12Z", "manual")])
+    source = CalibrationSource("ridge", str(path), frames_fingerprint(session), "run-1",
+                               "2026:04:12 08:00:00", {"T1": (300.0, 260.0), "T2": (1.0, 1.0)})
+    record = Calibration("2026-04-13T09:00:00Z", "p1000-tripod", (source,), 300.0)
+    return session, replace(session.rig(), calibration=record)
+
+
+def test_a_session_verdict_marks_its_calibration_targets_and_says_the_source(
+        tmp_path: Path) -> None:
+    from rigkit.reporting.scale import calibration_targets, scale_source
+    from rigkit.reporting.verdict import session_verdict
+
+    session, profile = _calibrated_session(tmp_path)
+    # T2 moved since (another pixel): the calibration's T2 was another target.
+    assert calibration_targets(profile, session) == {"T1"}
+    rows = [make_row("T1", 300.0, 0.1), make_row("T2", 300.0, 0.4)]
+    verdict = session_verdict(session, rows, profile=profile)
+    assert [t.calibrated for t in verdict.targets] == [True, False]
+    assert verdict.source == scale_source(profile) == (
+        "laser-calibrated 2026-04-13 from ridge (2 targets, taken 2026:04:12 08:00:00): "
+        "C_lb 2.000 +- 0.020 m")
+    assert "taped (C_lb 2.000 +- 0.020 m, not laser-calibrated)" == scale_source(session.rig())

@@ -22,8 +22,7 @@ from rigkit.capture.actions import stale_results
 from rigkit.capture.comparisons import Comparison, latest_run
 from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
-from rigkit.reporting.scale import run_reference, run_scale_note
-from rigkit.reporting.verdict import judge, run_shortfalls
+from rigkit.reporting.verdict import run_shortfalls, session_verdict
 from rigkit.tui.screens.common import escape, session_of
 from rigkit.tui.screens.exporting import ExportingScreen
 from rigkit.tui.widgets import PixelView
@@ -140,20 +139,20 @@ class ProcessScreen(ExportingScreen):
         session = session_of(self)
         self.query_one(ProgressBar).update(progress=1.0)
         shortfalls = run_shortfalls(session.path)
-        verdict = judge(rows, session.rig(), frames=session.burst_length, shortfalls=shortfalls,
-                        scale=run_scale_note(rows, session.rig(), run_reference(session.path)))
+        verdict = session_verdict(session, rows, shortfalls=shortfalls)
         table = self.query_one(DataTable)
         table.clear()
         for row, target in zip(rows, verdict.targets, strict=True):
             error = "" if math.isnan(row.error_pct) else f"{row.error_pct:+.2f} %"
             table.add_row(row.target, _num(row.laser_range_m), _num(row.estimate_range_m),
-                          error, "✔" if target.ok else "✘")
+                          error, "cal" if target.calibrated else "✔" if target.ok else "✘")
         colour = "$success" if verdict.ok else "$error"
         advice = "".join(f"\n- {escape(a)}" for a in verdict.advice)
         notes = [*shortfalls, *stray_warnings(session)]  # what `rigkit process` prints too
         advice += "".join(f"\n[$warning]{escape(note)}[/]" for note in notes)
         if verdict.scale:
             advice += f"\n[b]scale:[/] {escape(verdict.scale)}"
+        advice += f"\n[b]rig scale:[/] {escape(verdict.source)}"
         self.query_one("#verdict", Static).update(
             f"[b {colour}]{escape(verdict.headline)}[/]{advice}")
         self.call_later(self._show_depth, session.path / RESULTS_DIR / "depth.npy")
