@@ -46,7 +46,7 @@ from rigkit.errors import PipelineError
 from rigkit.geometry import rotvec_to_matrix
 from rigkit.pipeline.depth import rectified_rays
 from rigkit.pipeline.features import Matches
-from rigkit.pipeline.motion import BackStart, back_view_start, view_motion
+from rigkit.pipeline.motion import BackStart, back_view_start, spatial_blocks, view_motion
 from rigkit.pipeline.rectify import Rectification, apply_homography, plane_slopes, scaling
 from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
@@ -334,15 +334,6 @@ def residual_shear_sq(px: np.ndarray, residuals: np.ndarray) -> float:
     shears = (A[0, 0] - A[1, 1]) / 2, (A[0, 1] + A[1, 0]) / 2
     noise = float(variance.sum()) / 4  # each shear is half a sum of two slopes
     return max(shears[0] ** 2 + shears[1] ** 2 - noise, 0.0)
-
-
-def spatial_blocks(px: np.ndarray, blocks: int) -> np.ndarray:
-    """Which of a ``blocks`` x ``blocks`` grid over the points' bounding box each of
-    the (N, 2) pixel positions ``px`` lies in: (N,) int labels. Blocks far wider than
-    heat shimmer's patches hold errors that are nearly independent of each other's."""
-    lo, hi = px.min(axis=0), px.max(axis=0) + 1e-9
-    cell = np.floor((px - lo) / (hi - lo) * blocks).astype(int)
-    return cell[:, 1] * blocks + cell[:, 0]
 
 
 def _jackknife_beta_sigma(

@@ -184,7 +184,13 @@ def check_magnification(scale: float, baseline_lb_m: float, sigma: float = 0.0) 
             "view (expected < 1: was the back frame taken behind the left camera?)"
         )
     z = implied_range_m(scale, baseline_lb_m)
-    if z > MAX_IMPLIED_RANGE_M or 1.0 - scale <= NO_MAGNIFICATION_SIGMAS * sigma:
+    if z <= MAX_IMPLIED_RANGE_M and 1.0 - scale <= NO_MAGNIFICATION_SIGMAS * sigma:
+        raise PipelineError(
+            f"no magnification between left and back clear of the matches' noise: the back "
+            f"view is {scale:.5f} +- {sigma:.5f}x the left view (was the back frame taken "
+            "from the left position? step back by C_lb and capture again)"
+        )
+    if z > MAX_IMPLIED_RANGE_M:
         raise PipelineError(
             f"no magnification between left and back: the back view is {scale:.6f}x the "
             f"left view, a range of {z / 1000:.0f} km at C_lb = {baseline_lb_m} m (was the "

@@ -153,7 +153,8 @@ def _number(value: float) -> float | None:
     return round(value, 4) if np.isfinite(value) else None
 
 
-def three_view_tracks(m_lr: Matches, m_lb: Matches) -> tuple[np.ndarray, ...]:
+def three_view_tracks(m_lr: Matches, m_lb: Matches
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Left corners matched in both other views: (left, right, back), each (N, 2)
     float64 recorded px. Both match sets track the same left corners, so a track is a
     left position present in both."""

@@ -20,8 +20,10 @@ m) at::
     y' = y - r_x (1 + y^2) + r_y x y + r_z x + s y + w (-T_y + T_z y)
 
 with ``s`` the view's scale against the left one. Each match ``i`` gets its own
-``w_i`` (relative: their weighted mean is 0, so that ``s`` is the scale at the
-matches' mean inverse depth); ``T`` is known along the axis the view moved (the right
+``w_i`` (relative: their mean is 0, each weighed by its precision, so that ``s`` is the
+scale at the matches' mean inverse depth, ~uniformly weighed where the right view holds
+the depths, by ``|p - (T_x, T_y) / T_z|^2`` for a back view alone); ``T`` is known
+along the axis the view moved (the right
 view: x; the back view: z, behind) and free across it (the tripod's offsets). The
 model is linear in ``(r, s)``, in each ``w_i`` and in ``T``'s free components
 separately, and is fitted by alternating between them (each step an exact, weighted
@@ -46,6 +48,11 @@ ITERATIONS = 20
 """Gauss-Newton steps at most; the fit stops earlier once no scale moves by more than
 :data:`SCALE_TOL`."""
 SCALE_TOL = 1e-8
+BLOCKS = 3
+"""Blocks per side of the jackknife's grid (:func:`_jackknife`)."""
+OFFSET_PRIOR = 0.25
+"""One standard deviation of a view's offset across its axis, in units of its baseline
+along it: 0.5 m for a back camera 2 m behind, more than a tripod set up again leaves."""
 TURNS = 3
 """Times the turn found is taken out exactly and the model fitted again: a roll of 5
 deg scales the view by cos(5 deg) = 0.996 at second order, half the magnification."""
@@ -189,15 +196,16 @@ def _fit(p: np.ndarray, views: list[View], floor: float,
     a[:, 0] = np.stack([-x * y, 1 + x * x, -y, x], axis=1)
     a[:, 1] = np.stack([-(1 + y * y), x * y, x, y], axis=1)
     deltas = [v.q - p for v in views]  # (N, 2) each
-    T = [NOMINAL[v.axis].copy() if start is None else s.translation.copy()
-         for v, s in zip(views, start or views, strict=True)]
+    T = ([NOMINAL[v.axis].copy() for v in views] if start is None else
+         [s.translation.copy() for s in start])
     free = [FREE[v.axis] for v in views]
     w, weight = np.zeros(len(p)), np.ones(len(p))
     thetas = [np.zeros(4) for _ in views]
     residual = np.zeros(len(p))
-    unit = np.zeros(4 * len(views))  # the scales' variances per unit residual variance
+    noise = floor
     for _ in range(ITERATIONS):
-        new, w, moves, unit = _step(a, deltas, p, T, free, w, weight, floor)
+        noise = max(float(np.sqrt(np.average(residual**2, weights=weight))), floor)
+        new, w, moves = _step(a, deltas, p, T, free, w, weight, noise)
         for t, f, m in zip(T, free, moves, strict=True):
             t[f] += m
         errs = [d - a @ th - w[:, None] * _depth_columns(p, t)
@@ -209,30 +217,58 @@ def _fit(p: np.ndarray, views: list[View], floor: float,
         if converged:
             break
     rms = float(np.sqrt(np.average(residual**2, weights=weight)))
-    # per residual component: squares over what the unknowns leave free
-    dof = max(2 * len(views) * float(weight.sum()) - len(p) - unit.size, 1.0)
-    variance = float(np.sum(weight * residual**2)) * len(views) / dof
+    sigmas = _jackknife(a, deltas, p, T, free, w, weight, noise)
     return [ViewMotion(scale=float(1.0 + th[3]), rotvec=th[:3].copy(), translation=t,
-                       rms_px=rms, matches=int((weight > 0.5).sum()),
-                       scale_sigma=float(np.sqrt(max(unit[4 * v + 3], 0.0) * variance)))
-            for v, (th, t) in enumerate(zip(thetas, T, strict=True))]
+                       rms_px=rms, matches=int((weight > 0.5).sum()), scale_sigma=sigma)
+            for th, t, sigma in zip(thetas, T, sigmas, strict=True)]
+
+
+def _jackknife(a: np.ndarray, deltas: list[np.ndarray], p: np.ndarray, T: list[np.ndarray],
+               free: list[list[int]], w: np.ndarray, weight: np.ndarray, noise: float
+               ) -> list[float]:
+    """Each view's scale's standard error by the delete-one-block jackknife over a
+    :data:`BLOCKS` x :data:`BLOCKS` grid of the left points (a Gauss-Newton step from
+    the fit without each block): heat shimmer moves whole patches of matches, and a
+    flat scene's offsets follow its depths' noise; neither is independent error, which
+    the least squares' own covariance assumes."""
+    labels = spatial_blocks(p, BLOCKS)
+    scales = []
+    for b in np.unique(labels):
+        thetas, _, _ = _step(a, deltas, p, T, free, w, np.where(labels == b, 0.0, weight),
+                             noise)
+        scales.append([th[3] for th in thetas])
+    n = len(scales)
+    if n < 2:
+        return [0.0] * len(deltas)
+    spread = np.asarray(scales)
+    return list(np.sqrt((n - 1) / n * np.sum((spread - spread.mean(axis=0)) ** 2, axis=0)))
+
+
+def spatial_blocks(px: np.ndarray, blocks: int) -> np.ndarray:
+    """Which of a ``blocks`` x ``blocks`` grid over the points' bounding box each of
+    the (N, 2) pixel positions ``px`` lies in: (N,) int labels. Blocks far wider than
+    heat shimmer's patches hold errors that are nearly independent of each other's."""
+    lo, hi = px.min(axis=0), px.max(axis=0) + 1e-9
+    cell = np.floor((px - lo) / (hi - lo) * blocks).astype(int)
+    return cell[:, 1] * blocks + cell[:, 0]
+
 
 
 def _step(a: np.ndarray, deltas: list[np.ndarray], p: np.ndarray, T: list[np.ndarray],
-          free: list[list[int]], w0: np.ndarray, weight: np.ndarray, floor: float
-          ) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray], np.ndarray]:
+          free: list[list[int]], w0: np.ndarray, weight: np.ndarray, noise: float
+          ) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
     """One weighted Gauss-Newton step: every view's (r_x, r_y, r_z, s), every point's
     inverse depth w and the move of each view's free translation components, the
     product w T linearised about the last depths ``w0``. Each point's w is eliminated
-    (its rows projected off its depth column: Schur's complement) and the w's weighted
-    mean held at 0 by a Lagrange multiplier (the scales are the mean depth's: a common
-    shift of every w is a turn and a scale, all but its second-order part). The free
+    (its rows projected off its depth column c: Schur's complement) and the w's mean,
+    each weighed by its precision (|c|^2 and the Cauchy weight), held at 0 by a
+    Lagrange multiplier (the scales are the mean depth's: a common shift of every w is
+    a turn and a scale, all but its second-order part). The free
     translation components are held towards 0 (no offset across the axis) by a prior of
-    one baseline over sqrt(N), weighed at the residuals' ``floor``: nothing against
-    the matches, but a flat scene (every w 0, at the first step too) moves no offset.
+    :data:`OFFSET_PRIOR` baselines, weighed against the residuals' ``noise``
+    (normalised units).
     ``a``: (N, 2, 4) one view's turn and scale columns per point; ``deltas``: (N, 2)
-    per view. Also the diagonal of the turns' and scales' covariance per unit of
-    residual variance (the constrained solve's inverse)."""
+    per view."""
     n, views = len(p), len(deltas)
     k = 4 * views + sum(len(f) for f in free)
     A = np.zeros((n, 2 * views, k))
@@ -251,22 +287,26 @@ def _step(a: np.ndarray, deltas: list[np.ndarray], p: np.ndarray, T: list[np.nda
     Pd = d - c * (cd / cc)[:, None]
     H = np.einsum("n,nij,nik->jk", weight, PA, PA)
     g = np.einsum("n,nij,ni->j", weight, PA, Pd)
-    prior = floor**2 * float(weight.sum())
+    prior = (noise / OFFSET_PRIOR) ** 2
     offsets = np.concatenate([t[f] for t, f in zip(T, free, strict=True)])
     H[4 * views:, 4 * views:] += prior * np.eye(k - 4 * views)
     g[4 * views:] -= prior * offsets
-    mean_row = (weight / cc) @ cA  # sum_i weight_i c_i^T A_i / |c_i|^2
-    kkt = np.zeros((k + 1, k + 1))
-    kkt[:k, :k], kkt[:k, k], kkt[k, :k] = H, mean_row, mean_row
-    inverse = np.linalg.inv(kkt)
-    x = (inverse @ np.append(g, float((weight / cc) @ cd)))[:k]
+    # sum_i weight_i |c_i|^2 w_i = 0: the mean of the w's, each weighed by its precision
+    x = np.linalg.solve(_kkt(H, weight @ cA), np.append(g, float(weight @ cd)))[:k]
     w = (cd - cA @ x) / cc
     moves, col = [], 4 * views
     for f in free:
         moves.append(x[col:col + len(f)])
         col += len(f)
-    return ([x[4 * v:4 * v + 4] for v in range(views)], w, moves,
-            np.diag(inverse)[:4 * views].copy())
+    return [x[4 * v:4 * v + 4] for v in range(views)], w, moves
+
+
+def _kkt(H: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """The normal equations ``H`` bordered by one linear constraint ``row``."""
+    k = len(row)
+    kkt = np.zeros((k + 1, k + 1))
+    kkt[:k, :k], kkt[:k, k], kkt[k, :k] = H, row, row
+    return kkt
 
 
 def _depth_columns(p: np.ndarray, T: np.ndarray) -> np.ndarray:

@@ -94,9 +94,9 @@ class Ground:
         """Left-camera-frame points or directions (..., 3) in the ground frame."""
         return np.asarray(X, float) @ self.R_cg
 
-    def elevation(self, X: np.ndarray, Z: np.ndarray) -> np.ndarray:
+    def elevation(self, X: np.ndarray | float, Z: np.ndarray | float) -> np.ndarray:
         """e(X, Z), m above the datum (up)."""
-        e = self.slope[0] * X + self.slope[1] * Z
+        e = np.asarray(self.slope[0] * X + self.slope[1] * Z)
         for a, kx, kz, ph in self.waves:
             e = e + a * np.sin(kx * X + kz * Z + ph)
         for b, x0, z0, s in self.bumps:
@@ -106,7 +106,8 @@ class Ground:
             e = e + rise * _smoothstep((Z - z0) / width)
         return e
 
-    def gradient(self, X: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def gradient(self, X: np.ndarray | float, Z: np.ndarray | float
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """(dE/dX, dE/dZ) at (X, Z)."""
         gx = np.full(np.shape(X), self.slope[0])
         gz = np.full(np.shape(Z), self.slope[1])
@@ -231,12 +232,13 @@ class Ground:
         return np.stack([X[..., 0], t], axis=-1), np.stack([X[..., 0], X[..., 2]], axis=-1)
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
+def _smoothstep(x: np.ndarray | float) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3 - 2 * x)
 
 
-def _smoothstep_slope(x: np.ndarray) -> np.ndarray:
+def _smoothstep_slope(x: np.ndarray | float) -> np.ndarray:
+    x = np.asarray(x)
     inside = (x > 0) & (x < 1)
     return np.where(inside, 6 * x * (1 - x), 0.0)
 

@@ -30,7 +30,7 @@ from rigkit.synth.ground import Ground
 from rigkit.synth.movers import Paint, painted
 from rigkit.synth.scene import Scene
 from rigkit.synth.shadows import shadow_factor
-from rigkit.synth.shapes import FACE_SHIFT, Box, Sphere, TextureMap
+from rigkit.synth.shapes import FACE_SHIFT, Box, Sphere, Terrain, TextureMap
 from rigkit.synth.shimmer import displacement_field
 
 TERRAIN = 0
@@ -85,6 +85,7 @@ def sample_texture(tex: TextureMap, s: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _terrain_t(scene: Scene, o: np.ndarray, d: np.ndarray, t: np.ndarray, iters: int) -> np.ndarray:
     """Solve o_z + t d_z = g(o_x + t d_x, o_y + t d_y) by fixed-point iteration."""
+    assert isinstance(scene.terrain, Terrain)
     g = scene.terrain.z
     for _ in range(iters):
         t = (g(o[0] + t * d[..., 0], o[1] + t * d[..., 1]) - o[2]) / d[..., 2]
@@ -136,6 +137,7 @@ def _fields(scene: Scene, xz: np.ndarray) -> np.ndarray:
     ground = scene.terrain
     assert isinstance(ground, Ground)
     tex = scene.textures[ground.patches]
+    assert isinstance(tex, TextureMap)
     return (0.55 + 0.9 * sample_texture(tex, xz[:, 0], xz[:, 1])).astype(np.float32)
 
 

@@ -318,16 +318,19 @@ def _ground_scene(params: SynthParams, seed: int, cams: dict[str, Camera],
     """A scene looking down on ground that recedes up the view (:mod:`rigkit.synth.ground`)."""
     ground, boxes, spheres, textures = make_ground(params, rng)
     gains = {name: float(1 + rng.uniform(-params.gain_jitter, params.gain_jitter)) for name in cams}
-    scene = Scene(params=params, seed=seed, cameras=cams, euler_deg=eulers, terrain=ground,
-                  boxes=boxes, spheres=spheres, textures=textures, gains=gains)
     half_w = params.distance_m * params.width / 2 / params.focal_px
-    return _add_world(scene, seed, half_w, half_w * params.height / params.width)
+    shadows = make_shadows(params.n_shadows, half_w, params.shadow_drift_m,
+                           np.random.default_rng([seed, 17]))  # as _add_world draws them
+    return Scene(params=params, seed=seed, cameras=cams, euler_deg=eulers, terrain=ground,
+                 boxes=boxes, spheres=spheres, textures=textures, gains=gains,
+                 shadows=shadows)
 
 
 def _add_world(scene: Scene, seed: int, half_w: float, half_h: float) -> Scene:
     """``scene`` with its facades, movers and cloud shadows. Each draws from a generator
     of its own, so that they leave the rest of the seed's scene as it was."""
     p = scene.params
+    assert isinstance(scene.terrain, Terrain)  # they stand on a terrain facing the cameras
     relief = p.relief * p.distance_m
     n = len(scene.textures)
     facades, looks = make_facades(p.n_facades, scene.terrain, half_w, half_h, relief, n,
