@@ -115,7 +115,8 @@ KINDS = {
     "receding": Kind(False, 1, GROUND, "901-912", ranges=RECEDING),
     "receding-field": Kind(True, 1, GROUND, "921-932", ranges=RECEDING),
     "receding-burst": Kind(True, 5, GROUND, "941-952", ranges=RECEDING),
-    "low-relief": Kind(False, 1, (), "961-980", ranges=(("relief", 0.0005, 0.003),)),
+    "low-relief": Kind(False, 1, (("n_boxes", 0), ("n_spheres", 0)), "961-980",
+                       ranges=(("relief", 0.002, 0.012),)),
 }
 """The kinds ``--kind`` names (docs/results-log.md: "The world moves, other air, lenses
 that do not fit" and issue 35)."""
