@@ -23,20 +23,22 @@ with ``s`` the view's scale against the left one. Each match ``i`` gets its own
 ``w_i`` (relative: their mean is 0, each weighed by its precision, so that ``s`` is the
 scale at the matches' mean inverse depth, ~uniformly weighed where the right view holds
 the depths, by ``|p - (T_x, T_y) / T_z|^2`` for a back view alone); ``T`` is known
-along the axis the view moved (the right
-view: x; the back view: z, behind) and free across it (the tripod's offsets). The
-model is linear in ``(r, s)``, in each ``w_i`` and in ``T``'s free components
-separately, and is fitted by alternating between them (each step an exact, weighted
-least-squares solve; Cauchy weights discount matches no depth explains). Along the
-parallax of each match its own ``w_i`` absorbs what depth does, so the scale is read
-off across it: for the right view from the rows' spacing, for the back view from its
-contraction across the direction towards its epipole.
+along the axis the view moved (the right view: x; the back view: z, behind) and free
+across it (the tripod's offsets, held by a weak prior). The model is linear in
+``(r, s)`` and in each ``w_i``, bilinear in ``w`` and ``T``: Gauss-Newton steps solve
+for all at once, each ``w_i`` eliminated in closed form (Schur's complement), with
+Cauchy weights that discount matches no depth explains. Along the parallax of each
+match its own ``w_i`` absorbs what depth does, so the scale is read off across it: for
+the right view from the rows' spacing, for the back view from its contraction across
+the direction towards its epipole. The turn is then taken out exactly and the model
+fitted again, and the scale's standard error comes from a spatial block jackknife.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from rigkit.errors import PipelineError
@@ -78,8 +80,8 @@ class ViewMotion:
     along its axis (``(1, ., 0)`` for the right view, ``(., ., -1)`` for the back one);
     ``rms_px``: the matches' RMS residual, px (Cauchy-weighted); ``matches``: how many
     carried weight (Cauchy weight over 0.5); ``scale_sigma``: the scale's standard
-    error, from the residuals' weighted scatter (independent errors: heat shimmer's
-    shared ones make it larger).
+    error, by a spatial block jackknife (:func:`_jackknife`: heat shimmer's errors are
+    shared by neighbouring matches).
     """
 
     scale: float
@@ -173,10 +175,7 @@ def _turned_back(q: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 def _rotvec(R: np.ndarray) -> np.ndarray:
     """The rotation vector (3,) of ``R``."""
-    angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))
-    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    n = np.linalg.norm(axis)
-    return axis * (angle / n) if n > 1e-15 else np.zeros(3)
+    return cv2.Rodrigues(R)[0].ravel()
 
 
 NOMINAL = {"x": np.array([1.0, 0.0, 0.0]), "z": np.array([0.0, 0.0, -1.0])}
