@@ -41,6 +41,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from rigkit.core.threads import deterministic
 from rigkit.errors import PipelineError
 from rigkit.geometry import rotvec_to_matrix
 from rigkit.pipeline.checks import check_magnification
@@ -101,6 +102,7 @@ class View:
     axis: str
 
 
+@deterministic
 def view_motion(m: Matches, focal_px: float, centre: np.ndarray, axis: str) -> ViewMotion:
     """Fit the first-order motion model (module docstring) to ``m`` (left -> view, px)
     for a view that moved along ``axis`` (:class:`View`). ``centre`` (2,): the
@@ -113,6 +115,7 @@ def view_motion(m: Matches, focal_px: float, centre: np.ndarray, axis: str) -> V
     return fit_views(p, [View((m.other - centre) / focal_px, axis)], focal_px)[0]
 
 
+@deterministic
 def rig_motion(m_lr: Matches, m_lb: Matches, focal_px: float, centre: np.ndarray,
                tracks: tuple[np.ndarray, np.ndarray, np.ndarray]
                ) -> tuple[ViewMotion, ViewMotion]:
@@ -157,9 +160,9 @@ def fit_views(p: np.ndarray, views: list[View], focal_px: float) -> list[ViewMot
     again (:data:`TURNS`); its RMS in px of ``focal_px``."""
     turns = [np.eye(3) for _ in views]
     fits: list[ViewMotion] | None = None
-    for _ in range(TURNS):
+    for k in range(TURNS):
         seen = [replace(v, q=_turned_back(v.q, R)) for v, R in zip(views, turns, strict=True)]
-        fits = _fit(p, seen, FLOOR_PX / focal_px, fits)
+        fits = _fit(p, seen, FLOOR_PX / focal_px, fits, last=k == TURNS - 1)
         turns = [R @ rotvec_to_matrix(f.rotvec) for R, f in zip(turns, fits, strict=True)]
     assert fits is not None
     return [replace(f, rotvec=_rotvec(R), rms_px=f.rms_px * focal_px)
@@ -184,11 +187,12 @@ FREE = {"x": [1], "z": [0, 1]}
 
 
 def _fit(p: np.ndarray, views: list[View], floor: float,
-         start: list[ViewMotion] | None) -> list[ViewMotion]:
+         start: list[ViewMotion] | None, last: bool = True) -> list[ViewMotion]:
     """One fit of the first-order model (module docstring) of normalised left points
     ``p`` seen in ``views`` (their turns so far taken out), from ``start``'s
     translations (None: straight along each view's axis), by Gauss-Newton steps on the
-    product of depth and translation, reweighted (Cauchy) at each."""
+    product of depth and translation, reweighted (Cauchy) at each; the scales' standard
+    errors where it is the ``last`` (else 0)."""
     x, y = p[:, 0], p[:, 1]
     # Each view's columns of (r_x, r_y, r_z, s) per point: (N, 2, 4)
     a = np.zeros((len(p), 2, 4))
@@ -216,7 +220,8 @@ def _fit(p: np.ndarray, views: list[View], floor: float,
         if converged:
             break
     rms = float(np.sqrt(np.average(residual**2, weights=weight)))
-    sigmas = _jackknife(a, deltas, p, T, free, w, weight, noise)
+    sigmas = (_jackknife(a, deltas, p, T, free, w, weight, noise) if last
+              else [0.0] * len(views))
     return [ViewMotion(scale=float(1.0 + th[3]), rotvec=th[:3].copy(), translation=t,
                        rms_px=rms, matches=int((weight > 0.5).sum()), scale_sigma=sigma)
             for th, t, sigma in zip(thetas, T, sigmas, strict=True)]
@@ -280,12 +285,14 @@ def _step(a: np.ndarray, deltas: list[np.ndarray], p: np.ndarray, T: list[np.nda
     c = np.concatenate([_depth_columns(p, t) for t in T], axis=1)  # (N, 2V)
     d = np.concatenate(deltas, axis=1)
     cc = np.maximum((c * c).sum(axis=1), 1e-300)
-    cA = np.einsum("ni,nij->nj", c, A)  # c^T A per point
+    cA = np.matmul(c[:, None, :], A)[:, 0]  # c^T A per point
     cd = (c * d).sum(axis=1)
     PA = A - c[:, :, None] * (cA / cc[:, None])[:, None, :]
     Pd = d - c * (cd / cc)[:, None]
-    H = np.einsum("n,nij,nik->jk", weight, PA, PA)
-    g = np.einsum("n,nij,ni->j", weight, PA, Pd)
+    rows = PA.reshape(-1, k)  # one row per point and view component
+    weighted = rows * np.repeat(weight, 2 * views)[:, None]
+    H = weighted.T @ rows
+    g = weighted.T @ Pd.ravel()
     prior = (noise / OFFSET_PRIOR) ** 2
     offsets = np.concatenate([t[f] for t, f in zip(T, free, strict=True)])
     H[4 * views:, 4 * views:] += prior * np.eye(k - 4 * views)
