@@ -48,14 +48,15 @@ def _track(a: np.ndarray, b: np.ndarray, points: np.ndarray,
     """Pyramidal Lucas-Kanade from image ``a`` to ``b``: (new points, status), each
     search starting at ``start`` (N, 2) float32 (None: where the point is in ``a``)."""
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.005)
+    initial = points.copy() if start is None else start.copy()
     moved, status, _ = cv2.calcOpticalFlowPyrLK(
         a,
         b,
         points,
-        None if start is None else start.copy(),
+        initial,
         winSize=(21, 21),
         maxLevel=4,
-        criteria=crit,  # type: ignore[call-overload]
+        criteria=crit,
         flags=0 if start is None else cv2.OPTFLOW_USE_INITIAL_FLOW,
     )
     return moved, status
