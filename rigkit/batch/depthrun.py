@@ -157,7 +157,7 @@ def run_depth(
         progress=lambda stage, f: report(stage, 0.1 + 0.8 * f),
     )
     length = min(len(bursts[pos]) for pos in POSITIONS)
-    found = [result.offset_warning(length)]
+    found = [result.relief_warning(), result.offset_warning(length)]
     if loaded.shimmer is not None:
         found.append(burst_warning(rig, *loaded.shimmer, result.median_depth_m, length))
     shortfalls = tuple(filter(None, found))

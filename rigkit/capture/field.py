@@ -14,7 +14,8 @@ front end gets the same answers:
   pseudo-rectified (a camera only turned then leaves nothing but the matches' noise)
   and the spread of their disparities against that noise. A spread no larger than
   noise means the tripod was not moved or the same view was taken twice; one clear of
-  noise but too small for depth, a scene with little depth in view;
+  noise but under half a pixel, a scene with little depth in view, said but not
+  refused (the back view gives a flat scene's range);
 * after the back frame: its magnification m against the left view, below 1 because the
   back camera is ``C_lb`` behind, and the range it implies, z = m C_lb / (1 - m) (an
   object at depth z from the left camera is at z + C_lb from the back one; the paper's
@@ -61,6 +62,7 @@ from rigkit.core.threads import ViewPool
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import (
     MAX_RIGHT_SCALE_CHANGE,
+    NO_MAGNIFICATION_SIGMAS,
     implied_range_m,
     roles_problem,
 )
@@ -133,7 +135,7 @@ def burst_misfit(session: Session, position: str, name: str, new: CheckFrame) ->
         return None
     try:  # a frame that cannot be matched with the burst's is none of it
         view = map_views(first.image, new.image, first.reduction, session.rig().focal_px,
-                         reference(session, frames[0]))
+                         reference(session, frames[0]), axis="z" if position == "back" else "x")
     except RigkitError as exc:
         return (f"{name} does not match the {position} burst ({exc}): it looks like "
                 "another view")
@@ -264,9 +266,10 @@ def right_checks(view: ViewMap, profile: RigProfile | None = None) -> list[Findi
         return [*checks, scale]  # a magnified view's parallax means nothing
     if view.parallax is not None:
         problem = view.parallax.problem()
+        note = view.parallax.little_relief()
         checks.insert(0, Finding("parallax", problem[0], redo=problem[1]) if problem else
-                      Finding("parallax", f"parallax {view.parallax.spread_px:.1f} px across "
-                              "the scene", ok=True))
+                      Finding("parallax", note or f"parallax {view.parallax.spread_px:.1f} px "
+                              "across the scene", ok=True))
     return checks
 
 
@@ -291,9 +294,11 @@ def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
     """Magnification of the back view (< 1) and the range it implies."""
     c_lb = profile.baseline_lb.value_m
     checks = [_roll_check(view, "back")]
-    if view.scale >= 1.0:
+    if view.scale >= 1.0 or 1.0 - view.scale <= NO_MAGNIFICATION_SIGMAS * view.scale_sigma:
         checks.append(Finding(
-            "magnification", f"back view {view.scale:.4f}×: not smaller than the left view",
+            "magnification", f"back view {view.scale:.4f}×: not smaller than the left view"
+            + ("" if view.scale >= 1.0 else
+               f" by more than its noise (±{view.scale_sigma:.4f})"),
             redo=f"take the back frame {c_lb:g} m behind the left position, same zoom",
         ))
         return checks

@@ -18,12 +18,13 @@ EXAMPLE = """example:
   rigkit synth out/field-9b --seed 9 --field --burst 5 --distortion 0.47
   rigkit synth out/town-4 --seed 4 --movers 8 --shadows 2 --facades 2   # what moves, hard walls
   rigkit synth out/air-9 --seed 9 --field --shimmer-spectrum vonkarman --shimmer-outer 1500
+  rigkit synth out/valley-2 --seed 2 --backdrop ground --depth-ratio 2 --sky 0.3
 
 flags given explicitly override the rig profile; without --rig the defaults are the paper's.
 """
 # rigkit.synth.shimmer.SPECTRA, named here so that --help does not import the renderer
 SHIMMER_SPECTRA = ("gaussian", "fine", "vonkarman")
-BACKDROPS = ("terrain", "void")  # rigkit.synth.scene.BACKDROPS, without importing numpy
+BACKDROPS = ("terrain", "void", "ground")  # rigkit.synth.scene.BACKDROPS, without numpy
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -93,7 +94,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="building facades: periodic windows and plain walls, alternately")
     world.add_argument("--backdrop", choices=BACKDROPS,
                        help="terrain (default): ground and sky behind the objects; void: "
-                       "no ground, an exactly black background")
+                       "no ground, an exactly black background; ground: the cameras look "
+                       "down on ground receding up the view, objects standing on it")
+    world.add_argument("--depth-ratio", type=finite, metavar="R",
+                       help="--backdrop ground: the ground's far range over its near one "
+                       "in view (default 1.6; 2 is a valley from 200 to 400 m)")
     p.add_argument("--session", action="store_true",
                    help="write a capture session (raw/, session.yaml, rig.yaml) with "
                    "simulated laser targets, ready for `rigkit process`")

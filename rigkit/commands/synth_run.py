@@ -94,6 +94,7 @@ _CONDITION_FLAGS = {
     "shadow_drift": "shadow_drift_m",
     "facades": "n_facades",
     "backdrop": "backdrop",
+    "depth_ratio": "depth_ratio",
 }
 
 
