@@ -3,7 +3,7 @@
 writing the outputs) and, with ``--profile N``, cProfile's N costliest functions by
 cumulative and by own time.
 
-    python benchmarks/profile_depth.py LEFT RIGHT BACK --focal-px F --baseline-lr M
+    python -m benchmarks.profile_depth LEFT RIGHT BACK --focal-px F --baseline-lr M
         --baseline-lb M [--out out/profile/depth.npy] [--profile 40] [--repeat 3]
 
 A position given as comma-separated files is a burst (as ``rigkit depth`` takes it).
@@ -44,6 +44,8 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+from benchmarks.common import OUT
 
 STAGES = ("matching", "lens", "rectification", "stereo", "ambiguity", "agreement", "depth")
 
@@ -201,7 +203,7 @@ def print_projection(cores: CoreSampler, edges: list[tuple[str, float, float]]) 
               + f"  ({busy:.2f})")
 
 
-def depth_parser(description: str, out: str) -> argparse.ArgumentParser:
+def depth_parser(description: str, out: Path) -> argparse.ArgumentParser:
     """The arguments of a ``rigkit depth`` run to measure: the three positions (a
     comma-separated burst each, or one file), the rig's three numbers, and ``--out``
     (default ``out``)."""
@@ -211,7 +213,7 @@ def depth_parser(description: str, out: str) -> argparse.ArgumentParser:
         ap.add_argument(position)
     for flag in ("--focal-px", "--baseline-lr", "--baseline-lb"):
         ap.add_argument(flag, required=True)
-    ap.add_argument("--out", type=Path, default=Path(out))
+    ap.add_argument("--out", type=Path, default=out)
     return ap
 
 
@@ -222,8 +224,8 @@ def depth_argv(args: argparse.Namespace) -> list[str]:
             "--out", str(args.out), "--quiet"]
 
 
-def main() -> int:
-    ap = depth_parser(__doc__, "out/profile/depth.npy")
+def main(argv: list[str] | None = None) -> int:
+    ap = depth_parser(__doc__, OUT / "profile" / "depth.npy")
     ap.add_argument("--profile", type=int, default=0, metavar="N",
                     help="print cProfile's N costliest functions (default: no profile)")
     ap.add_argument("--repeat", type=int, default=1)
@@ -236,7 +238,7 @@ def main() -> int:
     ap.add_argument("--cores", action="store_true",
                     help="after each run, each stage's CPU seconds and its wall seconds "
                          "projected on 1, 2, 4, 8 and 16 idle cores")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.busy and args.cpu:
         ap.error("--busy goes with wall seconds: leave out --cpu")
     args.out.parent.mkdir(parents=True, exist_ok=True)

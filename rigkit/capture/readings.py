@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 
 from rigkit.capture.field import frames_at, view_of
-from rigkit.capture.session import LaserReading, Session
+from rigkit.capture.model import LaserReading, Session
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import implied_range_m
 from rigkit.rangefinder.framing import Reading, escape_bytes

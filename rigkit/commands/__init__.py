@@ -7,14 +7,18 @@ that runs it and returns the exit code. ``rigkit --help``, ``rigkit COMMAND --he
 a mistyped command build the whole parser, so ``NAME.py`` imports nothing but the
 standard library and this package's argument modules. ``NAME_run.py`` is the code, free
 to import what it needs: ``rigkit.cli`` imports it only when its command runs. A value
-the help shows that lives in a heavy module (a default, a list of choices) is repeated
-in ``NAME.py``, and tests/commands/test_loading.py holds each copy to its original.
+the help shows that the library uses too (a default, a list of choices) lives once, in a
+light module of its layer that both import (``rigkit.rig.defaults``,
+``rigkit.rangefinder.defaults``, ``rigkit.experiments.defaults``,
+``rigkit.export.defaults``); tests/commands/
+test_loading.py holds help to importing nothing else.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -54,3 +58,22 @@ def count(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
     return value
+
+
+class OutputPath:
+    """An argparse type for a path the command writes: a file (``--out D.npy``), a
+    folder it writes into or creates, or a log it appends to (``output_kind``).
+    ``rigkit.cli`` checks every option of such a type by the one rule for outputs
+    (:mod:`rigkit.core.outputs`) before the command runs."""
+
+    def __init__(self, output_kind: str) -> None:
+        self.output_kind = output_kind
+        self.__name__ = f"output_{output_kind}"  # argparse names the type in errors
+
+    def __call__(self, text: str) -> Path:
+        return Path(text)
+
+
+output_file = OutputPath("file")
+output_folder = OutputPath("folder")
+output_log = OutputPath("log")

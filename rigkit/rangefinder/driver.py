@@ -25,12 +25,15 @@ import time
 from collections import deque
 from dataclasses import dataclass, fields, replace
 from datetime import UTC, datetime
+from pathlib import Path
 from types import TracebackType
 from typing import Any, Protocol, TextIO
 
 import serial
 
+from rigkit.core.outputs import OutputLog
 from rigkit.errors import InputError
+from rigkit.rangefinder.defaults import DEFAULT_TIMEOUT_S
 from rigkit.rangefinder.framing import (
     ChecksumError,
     FrameError,
@@ -42,8 +45,8 @@ from rigkit.rangefinder.framing import (
 )
 from rigkit.rangefinder.protocols import get_protocol
 
-DEFAULT_TIMEOUT_S = 30.0
-"""Default wait for one reading, in seconds (time to aim and fire by hand)."""
+if "rigkit.rangefinder" not in serial.protocol_handler_packages:  # sim:// URLs as ports
+    serial.protocol_handler_packages.append("rigkit.rangefinder")
 POLL_S = 0.1
 """Read timeout set on ports the driver opens; bounds timeout overshoot."""
 PARITIES = ("N", "E", "O", "M", "S")
@@ -407,11 +410,8 @@ def open_rangefinder(
     if stopbits not in STOPBITS:
         raise InputError(f"stop bits must be 1, 1.5 or 2, got {stopbits}")
     log: TextIO | None = None
-    if log_path is not None:
-        try:
-            log = open(log_path, "a", encoding="ascii")
-        except OSError as exc:
-            raise InputError(f"cannot open raw log {os.fspath(log_path)}: {exc.strerror}") from None
+    if log_path is not None:  # never a file rigkit did not start, a link or a FIFO
+        log = OutputLog(Path(log_path), "--raw-log", encoding="ascii")
     port: Any
     if isinstance(url, str):
         name = url

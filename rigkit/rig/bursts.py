@@ -14,6 +14,7 @@ import math
 from rigkit.errors import InputError
 from rigkit.pipeline.estimate import OFFSET_WARNING_FRACTION
 from rigkit.pipeline.shimmer import Shimmer
+from rigkit.rig.defaults import SHIMMER_PX
 from rigkit.rig.formulas import disparity_px
 from rigkit.rig.profile import RigProfile
 
@@ -30,9 +31,6 @@ scenes at 0.3 px the offset was off by 0.92 px RMS (0.90 px since), 0.84 px of i
 beyond the floor.
 Shimmer moves ~50 px patches together, so matching more points does not lower it;
 only more frames do, by ~1/sqrt(frames) (docs/pipeline.md, "Field conditions")."""
-SHIMMER_PX = 0.3
-"""Default heat shimmer, px RMS per frame: moderate turbulence over 300 m at ~19 urad
-per pixel (docs/field.md)."""
 SHIMMER_CORR = 0.01
 """Correlation length of the shimmer ``OFFSET_PER_SHIMMER_PX`` was measured under, as a
 fraction of the image width (46 px at 4608; the Gaussian sigma of

@@ -21,18 +21,18 @@ from textual.message import Message
 from textual.theme import Theme
 
 from rigkit.capture import Session, is_session, load_session, log_event
-from rigkit.capture.actions import check_frame_file
 from rigkit.capture.field import (
-    add_position_frame,
-    burst_misfit,
     frames_at,
+    ingest,
     newest_failed,
     onsite_checks,
+    resume_note,
     resume_step,
 )
 from rigkit.capture.positioning import set_field_step
 from rigkit.capture.views import check_image
 from rigkit.core.chatter import private_terminal
+from rigkit.core.tables import visible
 from rigkit.errors import RigkitError, environment_message
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.messages import (
@@ -134,10 +134,15 @@ class FieldApp(App[None]):
             self.push_screen(StartScreen())
 
     def open_session(self, session: Session) -> None:
-        """Show ``session`` at the step it stopped at (:func:`resume_step`)."""
+        """Show ``session`` at the step it stopped at (:func:`resume_step`; where
+        session.yaml names a step this rigkit does not know, saying so)."""
         self.session = session
         self.sub_title = session.name
         self.goto(resume_step(session), resume=True)
+        note = resume_note(session)
+        if note:
+            self.notify(visible(note, lines=False), severity="warning", timeout=15,
+                        markup=False)
 
     def goto(self, step: str, resume: bool = False) -> None:
         """Replace the current step's screen with ``step``'s (``resume``: opening a
@@ -162,8 +167,7 @@ class FieldApp(App[None]):
             set_field_step(session, step)
         except (RigkitError, OSError) as exc:
             message = str(exc) if isinstance(exc, RigkitError) else environment_message(exc)
-            self.call_from_thread(self.notify, f"where the capture stands was not saved: "
-                                  f"{message}", severity="warning")
+            self.warn(f"where the capture stands was not saved: {visible(message)}")
 
     def on_goto(self, message: Goto) -> None:
         self.goto(message.step, message.resume)
@@ -187,23 +191,32 @@ class FieldApp(App[None]):
     @work(thread=True, group="watch")
     def watch_folder(self, folder: Path) -> None:
         """Ingest each frame that arrives in ``folder`` into the position on screen; when
-        the folder goes away (card removed), wait for it to come back."""
+        the folder goes away (card removed), wait for it to come back. Nothing on the
+        card ends the app: what cannot be watched is said and skipped
+        (:func:`rigkit.tui.watch.arrivals`)."""
         while not self.stop.is_set():
             if folder.is_dir():
-                for path in arrivals(folder, self.stop, self.config.settle_s):
-                    self.arrived(path)
-                if not self.stop.is_set():
-                    self.call_from_thread(
-                        self.notify, f"{folder} is gone (card removed?); watching again "
-                        "when it is back", severity="warning")
+                try:
+                    for path in arrivals(folder, self.stop, self.config.settle_s, self.warn):
+                        self.arrived(path)
+                except (OSError, RigkitError) as exc:
+                    self.warn(f"watching {visible(str(folder), lines=False)}: "
+                              f"{visible(str(exc), lines=False)}; watching again")
+                else:
+                    if not self.stop.is_set():
+                        self.warn(f"{visible(str(folder), lines=False)} is gone (card "
+                                  "removed?); watching again when it is back")
             self.stop.wait(1.0)
+
+    def warn(self, line: str) -> None:
+        """``line`` (shown as it is, never read as markup) as a warning (from a worker)."""
+        self.call_from_thread(self.notify, line, severity="warning", markup=False)
 
     def arrived(self, path: Path) -> None:
         """A complete new file in the watched folder (in the watcher's thread)."""
         position = self.call_from_thread(self.current_position)
         if position is None:
-            self.call_from_thread(self.notify, f"{path.name} arrived; open a position to add "
-                                  "it", severity="warning")
+            self.warn(f"{visible(path.name, lines=False)} arrived; open a position to add it")
         else:
             self.ingest(path, position)
 
@@ -222,30 +235,25 @@ class FieldApp(App[None]):
 
     def ingest(self, path: Path, position: str, retake: bool = False) -> None:
         """Copy ``path`` into the session for ``position``, then run its on-site checks
-        (blocking; called from worker threads). A frame that does not match the
-        position's burst is held back with a question instead (unless ``retake``)."""
+        (blocking; called from worker threads): staged, hashed and decoded once
+        (:func:`rigkit.capture.field.ingest`; what is refused at a glance is told before
+        it is read whole). A frame that does not match the position's burst is held back
+        with a question instead (unless ``retake``)."""
         assert self.session is not None
-        try:  # what is refused at a glance is told at once, before the slow comparisons
-            check_frame_file(self.session, position, path)
-        except RigkitError as exc:
-            self.tell(FrameRefused(position, str(exc)))
-            return
-        except OSError as exc:
-            self.tell(FrameRefused(position, environment_message(exc)))
-            return
         retake = retake or newest_failed(self.session, position)  # a retake joins no burst
-        misfit = None if retake else burst_misfit(self.session, position, path)
-        if misfit is not None:
-            self.tell(FrameHeld(position, path, misfit))
-            return
         try:
-            session = add_position_frame(self.session, position, path, retake)
+            done = ingest(self.session, position, path, replace_existing=retake,
+                          burst=not retake, check_burst=not retake)
         except RigkitError as exc:
             self.tell(FrameRefused(position, str(exc)))
             return
         except OSError as exc:  # a full card or disk, a read-only session
             self.tell(FrameRefused(position, environment_message(exc)))
             return
+        if done.held is not None:
+            self.tell(FrameHeld(position, path, done.held))
+            return
+        session = done.session
         self.call_from_thread(setattr, self, "session", session)
         self.tell(FrameAdded(position, path.name))
         self.check_position(session, position)

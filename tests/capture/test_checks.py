@@ -8,8 +8,8 @@ from typing import Any
 import pytest
 
 from rigkit.capture.checks import check_capture, size_findings
-from rigkit.capture.exif import read_exif
 from rigkit.errors import InputError
+from rigkit.imagefile.exif import read_exif
 from rigkit.rig import load_rig
 from tests.conftest import rig_file
 
@@ -76,7 +76,7 @@ def test_read_exif_without_exif(tmp_path: Path) -> None:
 
 
 def test_read_exif_missing_file(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match=r"gone\.jpg: no such image"):
+    with pytest.raises(InputError, match=r"gone\.jpg: no such file"):
         read_exif(tmp_path / "gone.jpg")
 
 

@@ -84,7 +84,7 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
         assert "✘" not in right and "parallax" in right
         await pilot.press("n")
         back = await take_position(pilot, app, "back")
-        assert "✘" not in back and "× → ~" in back and "at C_lb = 2.0 m" in back
+        assert "✘" not in back and "× → ~" in back and "at C_lb = 2.000 m" in back
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
@@ -100,7 +100,8 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
                        "the export", 30)
         await pilot.press("q")
     assert sorted(p.name for p in (demo.session / "export").iterdir()) == [
-        f"{demo.session.name}.las", f"{demo.session.name}.ply"]
+        ".rigkit-outputs", f"{demo.session.name}.export.json", f"{demo.session.name}.las",
+        f"{demo.session.name}.ply"]
     session = load_session(demo.session)
     assert taken(session) == ["left", "right", "back"]
     assert [len(t.readings) for t in session.targets] == [3, 3]
@@ -191,9 +192,10 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
         verdict = text(app, "#verdict")
         assert "0/1 targets within" in verdict and "capture again" in verdict
         assert re.search(r"T1: 2\d\.\d\d %: outside 1 %, outside the 2σ", verdict)
-        # What one laser says of the scale, shown with the verdict and marked unchecked.
-        assert re.search(r"scale: lasers say C_lb = 1\.\d{3} \+- .* re-tape C_lb, or "
-                         r"calibrate .*\(from 1 target\(s\): unchecked\)", verdict, re.S)
+        # One laser 20 % off the tape: neither is fitted to the other; and the scale's source.
+        assert re.search(r"scale: lasers: T1 and the tape's C_lb disagree .* 1 target cannot "
+                         r"tell which is wrong", verdict, re.S)
+        assert "rig scale: taped (C_lb 2.000 +- 0.000 m, not laser-calibrated)" in verdict
         await pilot.press("b", "m", *"200", "enter", "n")  # one more reading: run again
         await wait_for(pilot, lambda: len(runs(session.path)) == 2, "the second run", 60)
         await wait_for(pilot, lambda: "targets within" in text(app, "#verdict"), "the verdict")

@@ -11,7 +11,8 @@ from rigkit.batch import new_run_id, process_session
 from rigkit.capture import LaserReading, Session, Target, create_session, load_session
 from rigkit.capture.field import add_position_frame, frames_at, resume_step
 from rigkit.capture.positioning import set_field_step
-from rigkit.capture.session import RESULTS_DIR, save_session
+from rigkit.capture.results import RESULTS_DIR
+from rigkit.capture.session import save_session
 from rigkit.synth.demo import Demo
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
@@ -96,6 +97,14 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
         await wait_for(pilot, lambda: "comparisons.csv is unreadable" in text(app, "#stage"),
                        "the damaged results said")
         assert app.is_running and text(app, "#verdict").strip() == ""
+    record = session.path / RESULTS_DIR / "depth.json"  # hostile numbers in the record
+    record.write_text(record.read_text().replace('"offset_depth_error_fraction": ',
+                                                 '"offset_depth_error_fraction": 1e200, "_": '))
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:  # before: the TUI ended on opening
+        await wait_for(pilot, lambda: "offset_depth_error_fraction" in text(app, "#stage"),
+                       "the refused record said")
+        assert "1e+200" in text(app, "#stage") and app.is_running
 
 
 @synchronous

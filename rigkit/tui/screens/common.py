@@ -10,7 +10,8 @@ from textual.binding import Binding
 from textual.screen import Screen
 
 from rigkit.capture import Session
-from rigkit.capture.session import FIELD_STEPS
+from rigkit.capture.model import FIELD_STEPS
+from rigkit.core.tables import visible
 from rigkit.rig.findings import Finding
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.messages import Goto
@@ -46,8 +47,9 @@ def step_after(step: str, offset: int) -> str | None:
 
 
 def escape(text: str) -> str:
-    """``text`` safe to put in Rich markup."""
-    return text.replace("[", r"\[")
+    """``text`` safe to put in markup: shown as it is, never obeyed as markup or by the
+    terminal (:func:`rigkit.core.tables.visible`)."""
+    return visible(text, markup=True)
 
 
 def check_lines(checks: list[Finding]) -> str:

@@ -90,7 +90,9 @@ class PositionScreen(StepScreen):
         yield Footer(compact=True)
 
     def _checklist(self) -> str:
-        c_lb = f"{session_of(self).rig().baseline_lb.value_m:g} m in the profile"
+        rig = session_of(self).rig()
+        c_lb = f"{rig.baseline_lb.value_m:g} m in the profile" + (
+            " (laser-calibrated: the same set-up)" if rig.calibration else "")
         items = [item.format(c_lb=c_lb) for item in CHECKLISTS[self.position]]
         return f"[b]{self.position.upper()} position[/]\n" + "\n".join(f"• {i}" for i in items)
 
@@ -100,7 +102,7 @@ class PositionScreen(StepScreen):
 
     def _waiting(self) -> str:
         folder = self._folder()
-        source = f"watching {folder}" if folder else "no folder watched"
+        source = f"watching {escape(str(folder))}" if folder else "no folder watched"
         return f"{source}\nwaiting for the {self.position} frame (o: add a file)"
 
     @work(thread=True, exclusive=True, group="card")
@@ -179,7 +181,7 @@ class PositionScreen(StepScreen):
             f"it on the card\n{self._shown}")
 
     def show_added(self, name: str) -> None:
-        self.query_one("#checks", Static).update(f"frame {name}: checking ...")
+        self.query_one("#checks", Static).update(f"frame {escape(name)}: checking ...")
 
     def show_checks(self, checks: list[Finding], image: np.ndarray) -> None:
         """The newest frame's checks, and its preview."""
@@ -188,7 +190,8 @@ class PositionScreen(StepScreen):
         self.failed = next((c.message for c in checks if not c.ok), "")
         self.confirm = False
         hint = "" if self.failed else "\n[b]n[/]: next step"
-        self._shown = f"frame {Path(frames[-1].file).name}{burst}\n{check_lines(checks)}{hint}"
+        self._shown = (f"frame {escape(Path(frames[-1].file).name)}{burst}\n"
+                       f"{check_lines(checks)}{hint}")
         self.query_one("#checks", Static).update(self._shown)
         preview = self.query_one("#preview", Vertical)
         if not preview.is_attached:  # the step was left while its check ran
@@ -235,13 +238,13 @@ class PositionScreen(StepScreen):
         name = Path(frames[-1].file).name
         if self.dropping != frames[-1].file:
             self.dropping = frames[-1].file
-            self.notify(f"press x again to take {name} out of the {self.position} position "
-                        "(its file stays in raw/)", severity="warning", timeout=8)
+            self.notify(f"press x again to take {escape(name)} out of the {self.position} "
+                        "position (its file stays in raw/)", severity="warning", timeout=8)
             return
         self.dropping = ""
         session = remove_frame(session_of(self), self.position)
         self.post_message(SessionChanged(session))
-        self.notify(f"{Path(frames[-1].file).name} taken out of the {self.position} "
+        self.notify(f"{escape(Path(frames[-1].file).name)} taken out of the {self.position} "
                     "position (the file stays in raw/)")
         if frames_at(session, self.position):
             self._recheck(session)
@@ -258,8 +261,8 @@ class PositionScreen(StepScreen):
             self.held = None
         elif self.failed and not self.confirm:
             self.confirm = True
-            self.notify(f"the {self.position} frame failed a check ({self.failed}): take it "
-                        "again, or press n again to go on anyway", severity="warning",
+            self.notify(f"the {self.position} frame failed a check ({escape(self.failed)}): "
+                        "take it again, or press n again to go on anyway", severity="warning",
                         timeout=8)
             return
         super().action_next()

@@ -17,13 +17,13 @@ from textual.worker import get_current_worker
 
 from rigkit.batch import new_run_id, process_session
 from rigkit.batch.session import stray_warnings
-from rigkit.capture import RESULTS_DIR, frame_problems, read_rows
-from rigkit.capture.actions import stale_results
-from rigkit.capture.comparisons import Comparison, latest_run
+from rigkit.capture import frame_problems, read_rows
+from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run
+from rigkit.capture.results import RunFiles, session_record, stale_results
 from rigkit.errors import RigkitError, environment_message
+from rigkit.imagefile.imagesize import MAX_FRAME_PIXELS
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
-from rigkit.reporting.scale import run_reference, run_scale_note
-from rigkit.reporting.verdict import judge, run_shortfalls
+from rigkit.reporting.verdict import Verdict, run_verdict
 from rigkit.tui.screens.common import escape, session_of
 from rigkit.tui.screens.exporting import ExportingScreen
 from rigkit.tui.widgets import PixelView
@@ -72,11 +72,15 @@ class ProcessScreen(ExportingScreen):
         targets as the run had them, and every frame there (what ``session show`` says of
         it; the frames' hashes are read here, off the screen's thread)."""
         session = session_of(self)
+        verdict = None
         try:  # a damaged log or results/ is said, and r processes again
-            rows = latest_run(read_rows(session.path / "comparisons.csv")) \
-                if (session.path / "comparisons.csv").is_file() else []
-            done = bool(rows) and (session.path / RESULTS_DIR / "depth.npy").is_file()
+            rows = latest_run(read_rows(session.path / LOG_NAME, [])) \
+                if (session.path / LOG_NAME).is_file() else []
+            done = bool(rows) and RunFiles.of_session(session.path).depth.is_file()
             why = (stale_results(session) or "; ".join(frame_problems(session))) if done else ""
+            record = session_record(session.path) if done and not why else None
+            if record is not None:  # the verdict rigkit process gave this run
+                verdict = run_verdict(session, rows, session.rig(), record)
         except RigkitError as exc:
             done, why = True, str(exc)
         except OSError as exc:
@@ -87,10 +91,10 @@ class ProcessScreen(ExportingScreen):
             self.app.call_from_thread(self.query_one("#stage", Static).update,
                                       "not processed yet; r: process")
             return
-        if why:
-            self.app.call_from_thread(self._failed, f"{why}; r: process again")
+        if why or verdict is None:
+            self.app.call_from_thread(self._failed, f"{why or 'no results'}; r: process again")
             return
-        self.app.call_from_thread(self._show_results, rows)
+        self.app.call_from_thread(self._show_results, rows, verdict)
         self.app.call_from_thread(self.query_one("#stage", Static).update,
                                   "latest run shown; r: process again")
 
@@ -120,7 +124,8 @@ class ProcessScreen(ExportingScreen):
         except OSError as exc:  # a full disk, a read-only session
             self.app.call_from_thread(self._failed, environment_message(exc))
             return
-        self.app.call_from_thread(self._show_results, list(outcome.rows))
+        if outcome.verdict is not None:
+            self.app.call_from_thread(self._show_results, list(outcome.rows), outcome.verdict)
 
     def on_unmount(self) -> None:
         self.workers.cancel_group(self, "process")
@@ -136,36 +141,38 @@ class ProcessScreen(ExportingScreen):
         self.query_one("#verdict", Static).update("")
         self.query_one("#depth", Vertical).remove_children()
 
-    def _show_results(self, rows: list[Comparison]) -> None:
+    def _show_results(self, rows: list[Comparison], verdict: Verdict) -> None:
+        """The run's rows and the verdict it returned (or, reopened, the one
+        :func:`run_verdict` gives its record: the same words)."""
         session = session_of(self)
         self.query_one(ProgressBar).update(progress=1.0)
-        shortfalls = run_shortfalls(session.path)
-        verdict = judge(rows, session.rig(), frames=session.burst_length, shortfalls=shortfalls,
-                        scale=run_scale_note(rows, session.rig(), run_reference(session.path)))
         table = self.query_one(DataTable)
         table.clear()
         for row, target in zip(rows, verdict.targets, strict=True):
             error = "" if math.isnan(row.error_pct) else f"{row.error_pct:+.2f} %"
             table.add_row(row.target, _num(row.laser_range_m), _num(row.estimate_range_m),
-                          error, "✔" if target.ok else "✘")
+                          error, "cal" if target.calibrated else "✔" if target.ok else "✘")
         colour = "$success" if verdict.ok else "$error"
         advice = "".join(f"\n- {escape(a)}" for a in verdict.advice)
-        notes = [*shortfalls, *stray_warnings(session)]  # what `rigkit process` prints too
+        notes = [*verdict.shortfalls, *stray_warnings(session)]  # as `rigkit process` prints
         advice += "".join(f"\n[$warning]{escape(note)}[/]" for note in notes)
         if verdict.scale:
             advice += f"\n[b]scale:[/] {escape(verdict.scale)}"
+        advice += f"\n[b]rig scale:[/] {escape(verdict.source)}"
         self.query_one("#verdict", Static).update(
             f"[b {colour}]{escape(verdict.headline)}[/]{advice}")
-        self.call_later(self._show_depth, session.path / RESULTS_DIR / "depth.npy")
+        self.call_later(self._show_depth, RunFiles.of_session(session.path).depth)
 
     async def _show_depth(self, path: Path) -> None:
         """The depth map's preview and its scale, in place of the previous run's (removed
         first: processing again must not mount a second one beside it)."""
         box = self.query_one("#depth", Vertical)
         await box.remove_children()
-        try:
-            depth = np.load(path)
+        try:  # its header first: nothing but a frame-sized map is read
+            depth = np.load(path, mmap_mode="r")
         except (OSError, ValueError):
+            return
+        if depth.ndim != 2 or depth.size > MAX_FRAME_PIXELS:
             return
         lo, hi = depth_range(depth)
         image = cv2.cvtColor(colour_map(depth, lo, hi), cv2.COLOR_BGR2RGB)

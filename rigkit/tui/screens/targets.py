@@ -14,10 +14,10 @@ from textual.widgets import Footer, Header, Input, Static
 from textual.worker import get_current_worker
 
 from rigkit.capture import LaserReading, Session, Target, add_target, utc_now
-from rigkit.capture.actions import remove_reading, remove_target
 from rigkit.capture.field import frames_at
+from rigkit.capture.model import stray_readings
 from rigkit.capture.readings import implied_range, reading_doubt, reading_from_device
-from rigkit.capture.session import stray_readings
+from rigkit.capture.targets import remove_reading, remove_target
 from rigkit.capture.views import check_image
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.follow import LinkStatus, follow
@@ -260,14 +260,14 @@ class TargetsScreen(StepScreen):
         try:
             value = parse_typed_range(text, self.session.rig())
         except RigkitError as exc:
-            self.notify(str(exc), severity="error")
+            self.notify(escape(str(exc)), severity="error")
             return
         target = self._current()
         others = [r.slope_distance_m for r in target.readings] if target else []
         doubt = reading_doubt(value, others, self.implied_m, self.session.rig().nominal_range_m)
         if doubt and self.confirm != f"m {value:g}":
             self.confirm = f"m {value:g}"
-            self.notify(f"{doubt}: a typo? press m and type it again to keep it",
+            self.notify(f"{escape(doubt)}: a typo? press m and type it again to keep it",
                         severity="warning", timeout=10)
             return
         self.confirm = ""
@@ -287,7 +287,7 @@ class TargetsScreen(StepScreen):
                 session = add_target(self.session, target.name, target.pixel,
                                      window_px=target.window_px, readings=[reading])
             except RigkitError as exc:
-                self.notify(str(exc), severity="error")
+                self.notify(escape(str(exc)), severity="error")
                 return
             self._changed(session)
             self.last_shot += f" -> {target.name}"
