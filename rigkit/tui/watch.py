@@ -21,10 +21,9 @@ from watchfiles import watch
 from rigkit.capture import POSITIONS, Session
 from rigkit.capture.rawio import RAW_SUFFIXES
 from rigkit.capture.session import RAW_DIR
+from rigkit.tui.config import SETTLE_S
 
 IMAGE_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".jpg", ".jpeg"}) | RAW_SUFFIXES
-SETTLE_S = 0.6
-"""How long a file's size must stay the same before it counts, seconds."""
 CLOCK_ALLOWANCE_S = 3600.0
 """How far a camera's clock (which dates the files on its card) may be behind the
 computer's and its frames still count as taken since a session began, seconds."""

@@ -31,7 +31,7 @@ def demo(demo_scene: Demo, tmp_path: Path) -> Demo:
     session (as `rigkit field --demo` starts)."""
     shutil.copytree(demo_scene.scene, tmp_path / "scene")
     shutil.copy(demo_scene.rig, tmp_path / "rig.yaml")
-    copy = Demo(tmp_path, demo_scene.seed, SHOT_S)
+    copy = Demo(tmp_path, demo_scene.seed, SHOT_S, demo_scene.size, demo_scene.burst)
     copy.card.mkdir()
     copy.capture.mkdir()
     create_session(copy.session, copy.rig)
@@ -69,6 +69,12 @@ def shown(app) -> str:
 def text(app, selector: str) -> str:
     """The plain text a Static on the current screen shows."""
     return str(app.screen.query_one(selector).render())
+
+
+def side(app) -> str:
+    """What a position's side panel says of its frames: the question held, the newest
+    frame's state and its checks."""
+    return "\n".join(text(app, s) for s in ("#question", "#status", "#checks"))
 
 
 def write_frame(path: Path, image_path: Path, iso: int | None = None) -> Path:

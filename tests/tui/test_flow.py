@@ -23,7 +23,7 @@ from rigkit.tui.screens import (
     TargetsScreen,
 )
 from rigkit.tui.widgets import PixelView
-from tests.tui.conftest import SETTLE_S, synchronous, text, wait_for, write_frame
+from tests.tui.conftest import SETTLE_S, side, synchronous, text, wait_for, write_frame
 
 SIZE = (80, 24)
 
@@ -50,9 +50,9 @@ async def take_position(pilot, app: FieldApp, position: str) -> str:
     """Wait on ``position``'s screen until its frame is checked; return the checks text."""
     await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
                    and app.screen.position == position, f"the {position} screen")
-    await wait_for(pilot, lambda: "✔" in text(app, "#checks") or "✘" in text(app, "#checks"),
+    await wait_for(pilot, lambda: "✔" in side(app) or "✘" in side(app),
                    f"the {position} frame's checks")
-    return text(app, "#checks")
+    return side(app)
 
 
 async def take_the_left_frame(pilot, app: FieldApp, demo: Demo) -> None:
@@ -129,14 +129,14 @@ async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -
             checks.replace("\n", " ")
         assert not frames_at(load_session(session), "right")  # refused on arrival
         write_frame(demo.card / "DSCN0003.PNG", demo.scene / "right.png", iso=400)
-        await wait_for(pilot, lambda: "DSCN0003" in text(app, "#checks") and "✘" in
-                       text(app, "#checks"), "the EXIF mismatch")
-        checks = text(app, "#checks")
+        await wait_for(pilot, lambda: "frame DSCN0003" in side(app) and "✘" in
+                       side(app), "the EXIF mismatch")
+        checks = side(app)
         assert "ISO 400 differs from the left frame's ISO 100" in checks and "redo:" in checks
         write_frame(demo.card / "DSCN0004.PNG", demo.scene / "right.png", iso=100)
-        await wait_for(pilot, lambda: "DSCN0004" in text(app, "#checks") and "parallax" in
-                       text(app, "#checks"), "the good right frame")
-        assert "✘" not in text(app, "#checks")
+        await wait_for(pilot, lambda: "frame DSCN0004" in side(app) and "parallax" in
+                       side(app), "the good right frame")
+        assert "✘" not in side(app)
     recorded = load_session(session)
     assert frames_at(recorded, "right")[-1].file == "raw/DSCN0004.PNG"
     # The refused copy never entered raw/; the frame that failed its check is kept.
@@ -271,10 +271,10 @@ async def test_a_frame_declaring_a_huge_size_is_refused_and_the_app_goes_on(demo
         data = bytearray((demo.scene / "left.png").read_bytes())
         data[16:24] = struct.pack(">II", 60000, 60000)
         (demo.card / "DSCN0001.PNG").write_bytes(bytes(data))
-        await wait_for(pilot, lambda: "60000x60000" in text(app, "#checks"), "the refusal")
+        await wait_for(pilot, lambda: "60000x60000" in side(app), "the refusal")
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "left.png", iso=100)
-        await wait_for(pilot, lambda: "DSCN0002" in text(app, "#checks") and "✔" in
-                       text(app, "#checks"), "the good frame after it")
+        await wait_for(pilot, lambda: "frame DSCN0002" in side(app) and "✔" in
+                       side(app), "the good frame after it")
     assert [Path(f.file).name for f in frames_at(load_session(session), "left")] == \
         ["DSCN0002.PNG"]
 
@@ -304,7 +304,7 @@ async def test_actions_name_the_selected_target_and_a_typo_never_becomes_a_readi
         readings = {t.name: [r.slope_distance_m for r in t.readings]
                     for t in load_session(session.path).targets}
         assert readings == {"T1": [250.4], "T2": []}
-        await pilot.press("x")  # drop T1's newest reading
+        await pilot.press("x", "x")  # drop T1's newest reading (asked first)
         assert [len(t.readings) for t in load_session(session.path).targets] == [0, 0]
         shown = {b.binding.description for b in app.active_bindings.values()
                  if b.binding.show}
@@ -335,8 +335,8 @@ async def test_a_failed_check_asks_before_moving_on(demo: Demo) -> None:
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "back.png")  # no parallax
-        await wait_for(pilot, lambda: "DSCN0002" in text(app, "#checks")
-                       and "✘" in text(app, "#checks"), "the failed check")
+        await wait_for(pilot, lambda: "frame DSCN0002" in side(app)
+                       and "✘" in side(app), "the failed check")
         await pilot.press("n")
         await pilot.pause(0.2)
         assert app.screen.position == "right"  # asked, not moved on
@@ -352,9 +352,9 @@ async def test_a_frame_of_the_next_position_is_held_back_with_a_question(demo: D
         await take_the_left_frame(pilot, app, demo)
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "right.png")  # too early
         await wait_for(pilot, lambda: "does not match the left burst" in
-                       text(app, "#checks").replace("\n", " "), "the question")
+                       side(app).replace("\n", " "), "the question")
         assert len(frames_at(load_session(session), "left")) == 1
-        await pilot.press("n")  # take it to the right position
+        await pilot.press("f")  # take it to the right position
         await wait_for(pilot, lambda: frames_at(load_session(session), "right"),
                        "the frame at the right position")
     assert [Path(f.file).name for f in frames_at(load_session(session), "right")] == \
@@ -372,7 +372,7 @@ async def test_next_past_empty_positions_reaches_targets_without_a_crash(demo: D
             await pilot.press("n")
             await pilot.pause()
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
-                       and "no left frame yet" in text(app, "#link"), "the targets step")
+                       and "no left frame yet" in text(app, "#note"), "the targets step")
         await pilot.press("q")
     assert app._exception is None
 
@@ -403,11 +403,11 @@ async def test_a_retake_after_a_failed_frame_is_filed_where_it_was_taken(demo: D
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "left.png", iso=200)  # again
-        await wait_for(pilot, lambda: "DSCN0002" in text(app, "#checks")
-                       and "✘" in text(app, "#checks"), "the failed parallax check")
+        await wait_for(pilot, lambda: "frame DSCN0002" in side(app)
+                       and "✘" in side(app), "the failed parallax check")
         write_frame(demo.card / "DSCN0003.PNG", demo.scene / "right.png")
-        await wait_for(pilot, lambda: "DSCN0003" in text(app, "#checks"), "the retake's checks")
-        assert "does not match" not in text(app, "#checks").replace("\n", " ")
+        await wait_for(pilot, lambda: "frame DSCN0003" in side(app), "the retake's checks")
+        assert "does not match" not in side(app).replace("\n", " ")
     saved = load_session(session)
     assert [Path(f.file).name for f in frames_at(saved, "right")] == ["DSCN0003.PNG"]
     assert not frames_at(saved, "back")
@@ -437,7 +437,7 @@ async def test_a_typo_asks_first_and_x_drops_the_reading_under_the_cursor(demo: 
         await pilot.press("m", *"2011", "enter")  # typed again: kept
         await pilot.press("m", *"200.5", "enter", "m", *"200.5", "enter")
         await wait_for(pilot, lambda: readings() == [2011.0, 200.5], "both readings")
-        await pilot.press("left_square_bracket", "x")  # the older one, under the cursor
+        await pilot.press("left_square_bracket", "x", "x")  # the older one, under the cursor
         await wait_for(pilot, lambda: readings() == [200.5], "the typo dropped")
         panel = text(app, "#readings")
         assert "200.50 m" in panel and "2011.00" not in panel

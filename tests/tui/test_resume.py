@@ -140,7 +140,7 @@ async def test_frames_left_on_the_card_are_offered_again(demo: Demo) -> None:
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
                        and "DSCN0001.PNG" in text(app, "#card"), "the card's frame offered")
-        assert "1 on the card, not in the session" in text(app, "#card")
+        assert "on the card, not in the session: DSCN0001.PNG" in text(app, "#card")
         await pilot.press("c")
         assert "✘" not in await take_position(pilot, app, "left")
         await wait_for(pilot, lambda: not app.screen.query_one("#card").display,

@@ -21,7 +21,7 @@ from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
 from tests.conftest import rig_file
-from tests.tui.conftest import text, wait_for
+from tests.tui.conftest import side, text, wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
@@ -79,7 +79,7 @@ def test_left_position_with_a_checked_frame(snap_compare, capture: Path) -> None
     async def back_to_left(pilot) -> None:
         await pilot.press("b")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
-                       and "✔" in text(app, "#checks"), "the left frame's checks")
+                       and "✔" in side(app), "the left frame's checks")
 
     assert snap_compare(app, terminal_size=SIZE, run_before=back_to_left)
 

@@ -7,7 +7,6 @@ from pathlib import Path
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Static
 
 from rigkit.capture import is_session, load_session
@@ -15,10 +14,10 @@ from rigkit.capture.actions import create_session_in
 from rigkit.capture.field import frames_at, resume_step
 from rigkit.errors import RigkitError
 from rigkit.tui.messages import OpenSession
-from rigkit.tui.screens.common import escape, host
+from rigkit.tui.screens.common import FieldScreen, escape, host
 
 
-class StartScreen(Screen[None]):
+class StartScreen(FieldScreen):
     """Resume a session of the capture folder, or start a new one with a rig profile."""
 
     AUTO_FOCUS = "#sessions"
