@@ -13,6 +13,7 @@ import pytest
 from rigkit.capture import POSITIONS, Session, create_session, load_session, read_rows
 from rigkit.capture.field import add_position_frame, frames_at
 from rigkit.synth.demo import Demo
+from rigkit.synth.io import frame_name
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import (
@@ -46,12 +47,14 @@ def watching_app(demo: Demo) -> tuple[Path, FieldApp]:
                                          watch=demo.card, graphics=False, settle_s=SETTLE_S))
 
 
-async def take_position(pilot, app: FieldApp, position: str) -> str:
-    """Wait on ``position``'s screen until its frame is checked; return the checks text."""
+async def take_position(pilot, app: FieldApp, position: str, frames: int = 1) -> str:
+    """Wait on ``position``'s screen until its ``frames``-th frame is checked; return
+    what the side panel says."""
     await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
                    and app.screen.position == position, f"the {position} screen")
-    await wait_for(pilot, lambda: "✔" in side(app) or "✘" in side(app),
-                   f"the {position} frame's checks")
+    of = f" of {frames}" if frames > 1 else ""
+    await wait_for(pilot, lambda: f"({position} frame {frames}{of})" in side(app),
+                   f"the {position} frame {frames}'s checks")
     return side(app)
 
 
@@ -78,19 +81,21 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
         assert isinstance(app.screen, RigScreen)
         assert "focal length" in text(app, "#rig")
         await pilot.press("n")
-        assert "no EXIF" in await take_position(pilot, app, "left")
+        left = await take_position(pilot, app, "left", demo.burst)  # a burst, shimmer measured
+        assert "no EXIF" in left and "heat shimmer" in left and "✘" not in left
         await pilot.press("n")
-        right = await take_position(pilot, app, "right")
+        right = await take_position(pilot, app, "right", demo.burst)
         assert "✘" not in right and "parallax" in right
         await pilot.press("n")
-        back = await take_position(pilot, app, "back")
-        assert "✘" not in back and "× → ~" in back and "at C_lb = 2.0 m" in back
+        back = await take_position(pilot, app, "back", demo.burst)
+        assert "✘" not in back and "× → ~" in back and "at C_lb = 2 m" in back
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
         await mark_target(pilot, app, ["right", "right", "down"], 3)
         await mark_target(pilot, app, ["left"] * 6 + ["up"] * 4, 3)
-        assert "T2" in text(app, "#targets") and "-> T2" in text(app, "#readings")
+        await wait_for(pilot, lambda: "-> T2" in text(app, "LaserLine"), "the shots saved")
+        assert "T2" in text(app, "#targets")
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen)
                        and "targets within" in text(app, "#verdict"), "the verdict", 60)
@@ -106,10 +111,11 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
     assert [len(t.readings) for t in session.targets] == [3, 3]
     assert all(r.source.startswith("trupulse:sim://") for r in session.targets[0].readings)
     assert (demo.session / "results" / "depth.npy").is_file()
-    for number, position in enumerate(("left", "right", "back"), 100):  # originals untouched
-        card = (demo.card / f"DSCN{number:04d}.PNG").read_bytes()
-        assert card == (demo.scene / f"{position}.png").read_bytes()
-        assert hashlib.sha256(card).hexdigest() == frames_at(session, position)[-1].sha256
+    for index, position in enumerate(("left", "right", "back")):  # originals untouched
+        for k, frame in enumerate(frames_at(session, position)):
+            card = (demo.card / f"DSCN{100 + 10 * index + k:04d}.PNG").read_bytes()
+            assert card == (demo.scene / frame_name(position, k)).read_bytes()
+            assert hashlib.sha256(card).hexdigest() == frame.sha256
 
 
 @pytest.mark.slow
@@ -173,7 +179,7 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
-        assert "no rangefinder port" in text(app, "#link")
+        assert "no rangefinder port" in text(app, "LaserLine")
         await pilot.press("m")  # no target yet: nothing to type a range for
         assert not app.screen.query_one("#range").display
         await pilot.press("enter", "m", *"abc", "enter", "q")  # T1 marked, no reading
@@ -191,8 +197,8 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
         verdict = text(app, "#verdict")
         assert "0/1 targets within" in verdict and "capture again" in verdict
         assert re.search(r"T1: 2\d\.\d\d %: outside 1 %, outside the 2σ", verdict)
-        # What one laser says of the scale, shown with the verdict and marked unchecked.
-        assert re.search(r"scale: lasers say C_lb = 1\.\d{3} \+- .* re-tape C_lb, or "
+        # What one laser says of the scale, first (what to redo) and marked unchecked.
+        assert re.search(r"redo: lasers say C_lb = 1\.\d{3} \+- .* re-tape C_lb, or "
                          r"calibrate .*\(from 1 target\(s\): unchecked\)", verdict, re.S)
         await pilot.press("b", "m", *"200", "enter", "n")  # one more reading: run again
         await wait_for(pilot, lambda: len(runs(session.path)) == 2, "the second run", 60)
