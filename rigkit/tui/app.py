@@ -222,6 +222,8 @@ class FieldApp(App[None]):
     def on_mount(self) -> None:
         self.register_theme(FIELD_THEME)
         self.theme = FIELD_THEME.name
+        if self.config.session is not None:  # (set before the first header shows)
+            self.sub_title = self.config.session.name
         self.push_screen(OpeningScreen())
         self._prepare()
 
@@ -264,10 +266,12 @@ class FieldApp(App[None]):
             self.switch_screen(StartScreen())
 
     def _opening(self, text: str) -> None:
-        if isinstance(self.screen, OpeningScreen):
+        if self.screen_stack and isinstance(self.screen, OpeningScreen):
             self.screen.say(text)
 
     def on_notice(self, message: Notice) -> None:
+        if not self.screen_stack:
+            return
         if isinstance(self.screen, OpeningScreen):
             self.screen.say(message.text)
         else:
@@ -281,7 +285,8 @@ class FieldApp(App[None]):
         from rigkit.capture.field import resume_step
 
         self.session = session
-        self.sub_title = session.name
+        if self.sub_title != session.name:
+            self.sub_title = session.name
         self.laser.selected = session.targets[-1].name if session.targets else None
         self._start_laser(session)
         self.goto(resume_step(session), resume=True)
@@ -372,13 +377,14 @@ class FieldApp(App[None]):
         simulated one fires when a target is marked)."""
         if self.config.demo is not None:
             self.laser.link = "demo: mark a target (Enter on the targets step); it fires there"
+            self.laser.followed = True
             return
         port, protocol = self.config.port, self.config.protocol
         spec = session.rig().rangefinder
         if port is None and spec is not None and spec.port is not None:
             port, protocol = spec.port, spec.protocol
         if port is not None:
-            self.laser.link = f"opening {port} ..."
+            self.laser.link, self.laser.followed = f"opening {port} ...", True
             self.follow_laser(port, protocol, 0)
 
     @work(thread=True, exclusive=True, group="laser")
@@ -507,7 +513,7 @@ class FieldApp(App[None]):
 
     def current_position(self) -> str | None:
         """The position whose screen is on show, if one is."""
-        position = getattr(self.screen, "position", None)
+        position = getattr(self.screen, "position", None) if self.screen_stack else None
         return position if isinstance(position, str) else None
 
     def _added_before(self, path: Path) -> bool:
@@ -662,7 +668,8 @@ class FieldApp(App[None]):
 
     def _tell(self, tidings: Tidings) -> None:
         """``tidings`` to the screen on show (which drops them if it is being replaced)."""
-        self.screen.post_message(tidings)
+        if self.screen_stack:  # none while the app ends
+            self.screen.post_message(tidings)
 
 
 def _checked_key(session: Session) -> tuple[tuple[str, ...], ...]:

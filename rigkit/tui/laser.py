@@ -32,6 +32,7 @@ class LaserDesk:
 
     def __init__(self, link: str, selected: str | None) -> None:
         self.link = link  # the link's latest state, one line
+        self.followed = False  # a rangefinder (or the demo's) is followed
         self.connected = False
         self.last = ""  # the newest shot and where it went
         self.selected = selected
@@ -85,6 +86,12 @@ class LaserDesk:
             self._held.remove(shot)
             if not self._held:  # the newest shot: say where it went
                 self.last = f"{self.last.split(' -> ')[0]} -> {target}"
+
+    def worth_saying(self) -> bool:
+        """Whether screens other than the targets' show the laser's line: a rangefinder
+        is followed, or a shot was taken or is held."""
+        with self.lock:
+            return self.followed or bool(self.last) or bool(self._held)
 
     def line(self) -> str:
         """What every screen says of the laser, one line (plain text)."""

@@ -45,13 +45,21 @@ def arrivals(folder: Path, stop: threading.Event, settle_s: float = SETTLE_S,
     for changes in watch(folder, stop_event=stop, debounce=step_ms, step=50,
                          rust_timeout=step_ms, yield_on_timeout=True, force_polling=poll,
                          poll_delay_ms=step_ms, raise_interrupt=False):
-        for _, name in changes:
-            path = Path(name)
+        for path in sorted((Path(name) for _, name in changes), key=_written):  # in order
             if path not in seen and is_frame_file(path):
                 pending.setdefault(path, (-1, time.monotonic()))
         yield from _settled(pending, seen, settle_s)
         if not folder.is_dir():
             return
+
+
+def _written(path: Path) -> tuple[float, str]:
+    """When ``path`` was last written, and its name: files reported together are taken
+    in the order the camera wrote them."""
+    try:
+        return path.stat().st_mtime, path.name
+    except OSError:
+        return float("inf"), path.name
 
 
 def _settled(pending: dict[Path, tuple[int, float]], seen: set[Path], settle_s: float

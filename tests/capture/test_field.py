@@ -154,7 +154,7 @@ def test_back_checks_give_the_implied_range_and_catch_a_wrong_back_frame() -> No
     profile = load_rig(SYNTHETIC)  # C_lb 2 m, nominal 300 m
     checks = back_checks(_view(scale=0.9931), profile)
     assert _failed(checks) == {}
-    assert "back view 0.9931× → ~290 m at C_lb = 2.0 m" in [c.message for c in checks]
+    assert "back view 0.9931× → ~290 m at C_lb = 2 m" in [c.message for c in checks]
     assert "magnification" in _failed(back_checks(_view(scale=1.002), profile))
     assert "magnification" in _failed(back_checks(_view(scale=0.96), profile))  # ~48 m
 

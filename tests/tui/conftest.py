@@ -74,7 +74,8 @@ def text(app, selector: str) -> str:
 def side(app) -> str:
     """What a position's side panel says of its frames: the question held, the newest
     frame's state and its checks."""
-    return "\n".join(text(app, s) for s in ("#question", "#status", "#checks"))
+    parts = ("#question", "#status", "#checks")
+    return "\n".join(str(w.render()) for s in parts for w in app.screen.query(s))
 
 
 def write_frame(path: Path, image_path: Path, iso: int | None = None) -> Path:

@@ -53,8 +53,14 @@ async def take_position(pilot, app: FieldApp, position: str, frames: int = 1) ->
     await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
                    and app.screen.position == position, f"the {position} screen")
     of = f" of {frames}" if frames > 1 else ""
-    await wait_for(pilot, lambda: f"({position} frame {frames}{of})" in side(app),
-                   f"the {position} frame {frames}'s checks")
+
+    def checked() -> bool:
+        shown = side(app)
+        if not app.screen.query("#status"):  # the screen before issue 49: marks, one frame
+            return "checking" not in shown and ("✔" in shown or "✘" in shown)
+        return f"({position} frame {frames}{of})" in shown
+
+    await wait_for(pilot, checked, f"the {position} frame {frames}'s checks")
     return side(app)
 
 
@@ -112,8 +118,10 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
     assert all(r.source.startswith("trupulse:sim://") for r in session.targets[0].readings)
     assert (demo.session / "results" / "depth.npy").is_file()
     for index, position in enumerate(("left", "right", "back")):  # originals untouched
+        files = [Path(f.file).name for f in frames_at(session, position)]
+        assert files == [f"DSCN{100 + 10 * index + k:04d}.PNG" for k in range(demo.burst)]
         for k, frame in enumerate(frames_at(session, position)):
-            card = (demo.card / f"DSCN{100 + 10 * index + k:04d}.PNG").read_bytes()
+            card = (demo.card / files[k]).read_bytes()
             assert card == (demo.scene / frame_name(position, k)).read_bytes()
             assert hashlib.sha256(card).hexdigest() == frame.sha256
 
@@ -130,7 +138,8 @@ async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
         shutil.copy(demo.card / "DSCN0001.PNG", demo.card / "DSCN0002.PNG")
-        checks = await take_position(pilot, app, "right")
+        await wait_for(pilot, lambda: "same file" in side(app), "the refusal")
+        checks = side(app)
         assert "DSCN0002.PNG is the same file as raw/DSCN0001.PNG, given for left and right" in \
             checks.replace("\n", " ")
         assert not frames_at(load_session(session), "right")  # refused on arrival

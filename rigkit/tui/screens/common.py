@@ -79,11 +79,18 @@ class LaserLine(Static):
 
     DEFAULT_CSS = "LaserLine { height: auto; max-height: 2; padding: 0 1; }"
 
+    def __init__(self, always: bool = False) -> None:
+        """``always``: shown even with no rangefinder and no shot (the targets step,
+        where ranges are typed in)."""
+        super().__init__()
+        self.always = always
+
     def on_mount(self) -> None:
         self.show_desk()
 
     def show_desk(self) -> None:
         desk = cast(FieldHost, self.app).laser
+        self.display = self.always or desk.worth_saying()
         held = bool(desk.held()) and desk.selected is None
         self.update(f"[b $warning]{escape(desk.line())}[/]" if held else escape(desk.line()))
 

@@ -81,7 +81,7 @@ class TargetsScreen(StepScreen):
                 yield Static("", id="targets")
                 yield Static("", id="readings")
         yield Input(placeholder="range in metres, then Enter (Esc: cancel)", id="range")
-        yield LaserLine()
+        yield LaserLine(always=True)
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
