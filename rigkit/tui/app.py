@@ -147,6 +147,14 @@ class Arrival(Message):
         self.path = path
 
 
+class Reread(Message):
+    """The session as its folder held it once change number ``change`` was made."""
+
+    def __init__(self, session: Session, change: int) -> None:
+        super().__init__()
+        self.session, self.change = session, change
+
+
 class Forward(Message):
     """``tidings`` for the screen on show."""
 
@@ -216,6 +224,8 @@ class FieldApp(App[None]):
         self._step_lock = threading.Lock()
         self._step_saved: str | None = None
         self._quitting = False
+        self._changes = 0  # changes to the session told to the app, and the last reread
+        self._reread = 0
 
     # -- start ----------------------------------------------------------------------------
 
@@ -239,7 +249,7 @@ class FieldApp(App[None]):
         demo = self.config.demo
         try:
             if demo is not None:
-                demo.prepare(lambda text: self.post_message(Notice(text)))
+                demo.prepare(self._say)
             if self.config.session is not None:
                 load_session(self.config.session)
         except RigkitError as exc:
@@ -249,6 +259,10 @@ class FieldApp(App[None]):
             self.post_message(Loaded(environment_message(exc)))
             return
         self.post_message(Loaded())
+
+    def _say(self, text: str) -> None:
+        """From a worker: ``text`` on the first screen (or as a notification)."""
+        self.post_message(Notice(text))
 
     def on_loaded(self, message: Loaded) -> None:
         if message.error:
@@ -334,13 +348,30 @@ class FieldApp(App[None]):
         self.open_session(message.session)
 
     def on_session_changed(self, message: SessionChanged) -> None:
-        """Read the session again from its folder: changes land there from the screens
-        and the workers in any order, and the folder has them all."""
-        try:
-            self.session = load_session(message.session.path)
-        except RigkitError:
-            self.session = message.session
+        """Keep the session as the change saved it, and read it again from its folder
+        (changes land there from the screens and the workers in any order, and the
+        folder has them all) off the screen's thread: a long ``session.yaml`` takes a
+        tenth of a second to read."""
+        self.session = message.session
+        self._changes += 1
+        self.reread(self._changes)
         self._tell(LaserChanged())
+
+    @work(thread=True, group="reread")
+    def reread(self, change: int) -> None:
+        try:
+            session = load_session(self._session_path())
+        except RigkitError:
+            return
+        self.post_message(Reread(session, change))
+
+    def on_reread(self, message: Reread) -> None:
+        """The session as the folder had it after change ``message.change``: kept
+        unless a later change's reading is already in."""
+        if message.change > self._reread:
+            self._reread = message.change
+            self.session = message.session
+            self._tell(LaserChanged())
 
     def action_quit_field(self) -> None:
         """Quit: everything is already saved; shots still held are written to
@@ -452,7 +483,7 @@ class FieldApp(App[None]):
             session = self.session
             assert session is not None
             try:
-                target = load_session(session.path).target(name)
+                target = session.target(name)  # a target's pixel never changes
                 saved = add_target(session, name, target.pixel, window_px=target.window_px,
                                    readings=[shot.reading])
             except InputError as exc:

@@ -20,9 +20,10 @@ class FieldConfig:
     session to resume, or to create with ``rig``. ``watch``: folder frames arrive in.
     ``port``: the rangefinder's pyserial URL (None: readings typed in). ``demo``: the
     demo's folders, when running it (rendered and its session created when the app
-    starts, :meth:`rigkit.synth.demo.Demo.prepare`). ``graphics``: let textual-image use the terminal's
-    graphics protocol for previews when it has one (else half blocks). ``settle_s``: how
-    long a new file's size must stay the same before it counts, seconds."""
+    starts, :meth:`rigkit.synth.demo.Demo.prepare`). ``graphics``: let textual-image use
+    the terminal's graphics protocol for previews when it has one (else half blocks).
+    ``settle_s``: how long a new file's size must stay the same before it counts,
+    seconds."""
 
     capture: Path
     session: Path | None = None

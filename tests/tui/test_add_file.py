@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from rigkit.synth.demo import Demo
-from tests.tui.conftest import side, synchronous, text, wait_for
+from tests.tui.conftest import side, synchronous, wait_for
 from tests.tui.test_flow import SIZE, take_the_left_frame, watching_app
 
 

@@ -21,7 +21,7 @@ from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
 from tests.conftest import rig_file
-from tests.tui.conftest import side, text, wait_for
+from tests.tui.conftest import side, wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 P1000 = ROOT / "rigs" / "p1000-tripod.yaml"

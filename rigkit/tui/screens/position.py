@@ -15,7 +15,6 @@ from textual.worker import get_current_worker
 from rigkit.capture import Session
 from rigkit.capture.actions import remove_frame
 from rigkit.capture.field import frames_at, metres, next_move
-from rigkit.rig.findings import Finding
 from rigkit.tui.messages import (
     CardFrames,
     CheckPosition,

@@ -6,10 +6,10 @@ from textual.app import ComposeResult
 from textual.containers import VerticalScroll
 from textual.widgets import Footer, Header, Static
 
+from rigkit.capture.field import metres
 from rigkit.rig.budget import budget_row
 from rigkit.rig.check import check_rig
 from rigkit.rig.optics import fov_deg
-from rigkit.capture.field import metres
 from rigkit.tui.screens.common import LaserLine, StepScreen, escape, session_of
 
 PLANNED_RANGE_M = 300.0
