@@ -108,13 +108,14 @@ def burst_advice(profile: RigProfile, shimmer: Shimmer, where: str, range_m: flo
     length, C_lr and image size): (the line, :func:`frames_for_offset`'s answer). The
     one computation of the burst to take, on site (at the planned range) and after
     processing (at the measured median depth). The burst comes from the figures as the
-    line shows them (the RMS to 0.01 px, the range to the metre; the correlation
-    length to two figures), so one shown
+    line shows them (the RMS to 0.01 px, the correlation length to two figures, the
+    range to the metre), so one shown
     measurement always gets one answer: 0.0849 and 0.0751 px, both "0.08 px", once
     gave 2 frames and then 1."""
     rms, range_m = round(shimmer.rms_px, 2), float(round(range_m))
-    text = f"heat shimmer {rms:.2f} px RMS ({where})"
     corr = float(f"{shimmer.corr_px:.2g}") if math.isfinite(shimmer.corr_px) else None
+    patches = "" if corr is None else f" in patches of ~{corr:g} px"
+    text = f"heat shimmer {rms:.2f} px RMS{patches} ({where})"
     disparity = disparity_px(range_m, profile.focal_px, profile.baseline_lr.value_m)
     need = frames_for_offset(profile.image_size, disparity, rms, corr)
     bar = f"{100 * OFFSET_WARNING_FRACTION:g} % of depth"

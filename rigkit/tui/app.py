@@ -224,8 +224,7 @@ class FieldApp(App[None]):
         self._step_lock = threading.Lock()
         self._step_saved: str | None = None
         self._quitting = False
-        self._changes = 0  # changes to the session told to the app, and the last reread
-        self._reread = 0
+        self._changes = 0  # changes to the session told to the app
 
     # -- start ----------------------------------------------------------------------------
 
@@ -366,10 +365,9 @@ class FieldApp(App[None]):
         self.post_message(Reread(session, change))
 
     def on_reread(self, message: Reread) -> None:
-        """The session as the folder had it after change ``message.change``: kept
-        unless a later change's reading is already in."""
-        if message.change > self._reread:
-            self._reread = message.change
+        """The session as the folder had it after change ``message.change``: kept only
+        where no change came after it (that one's reading follows)."""
+        if message.change == self._changes:
             self.session = message.session
             self._tell(LaserChanged())
 
