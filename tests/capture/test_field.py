@@ -275,7 +275,8 @@ def test_a_burst_measures_the_shimmer_and_the_frames_it_calls_for(tmp_path: Path
                                      _png(tmp_path / f"{k}.png", _shimmered(scene, 0.15, k)))
     check = next(c for c in onsite_checks(session, "left") if c.code == "shimmer")
     found = re.fullmatch(r"heat shimmer (\S+) px RMS in patches of ~\S+ px \(left frame 1 "
-                         r"against 3 others: median, (\S+)-(\S+) px\): take (\d+) frames per position .*", check.message)
+                         r"against 3 others: median, (\S+)-(\S+) px\): take (\d+) frames per "
+                         r"position .*", check.message)
     assert found, check.message
     assert float(found[2]) <= float(found[1]) <= float(found[3])
     assert float(found[1]) == pytest.approx(0.15, rel=0.2)
