@@ -26,7 +26,8 @@ SEED = 49
 PRESSES = 200
 KEYS = ("n", "b", "n", "b", "n", "b", "x", "t", "m", "d", "left_square_bracket",
         "right_square_bracket", "enter", "escape", "up", "down", "left", "right", "shift+left",
-        "shift+up", "plus", "minus", "r", "e", "pagedown", "2", "0", "1", ".", "5", "ctrl+l", "space")
+        "shift+up", "plus", "minus", "r", "e", "pagedown", "2", "0", "1", ".", "5", "ctrl+l",
+        "space")
 SCHEDULE = ("rig", "left", "right", "back", "targets", "process", "targets", "left", "back")
 SIZES = ((80, 24), (60, 20), (100, 32), (72, 22), (120, 40))
 
