@@ -1,6 +1,6 @@
 """Why the Table 1 baselines fail: per scene, what each one got wrong in its geometry.
 
-    python benchmarks/baseline_diagnostics.py out/table1/scenes/seed-*
+    python -m benchmarks.baseline_diagnostics out/table1/scenes/seed-*
 
 For scenes rendered by ``rigkit experiments table1`` (ground-truth poses in scene.yaml):
 
@@ -25,8 +25,8 @@ from rigkit.experiments.loop_zhang import fundamental_ransac
 from rigkit.experiments.paper import PaperSettings, affine_rows_ransac, affine_warps
 from rigkit.experiments.sfm import colmap_poses
 from rigkit.geometry import Camera
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import load_scene
 
 VIEWS = ("left", "right", "back")
@@ -77,12 +77,12 @@ def diagnose(folder: Path) -> str:
     )
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("scenes", nargs="+", type=Path)
-    for folder in ap.parse_args().scenes:
+    for folder in ap.parse_args(argv).scenes:
         print(diagnose(folder), flush=True)
     return 0
 

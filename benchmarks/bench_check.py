@@ -3,7 +3,7 @@ checks (:func:`rigkit.capture.field.onsite_checks`) and the check image shown be
 them (:func:`rigkit.capture.views.check_image`), what ``rigkit field`` runs after each
 frame (``FieldApp.check_position``).
 
-    python benchmarks/bench_check.py [SESSION] [--work out/bench] [--runs 5] [--alone]
+    python -m benchmarks.bench_check [SESSION] [--work out/bench] [--runs 5] [--alone]
                                      [--burst SCENE]
 
 SESSION: a capture session with a left, a right and a back frame; by default a
@@ -32,6 +32,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from benchmarks.common import OUT, run_script
 
 POSITIONS = ("left", "right", "back")
 
@@ -62,13 +64,7 @@ def burst_in_turn(rig: Path, scene: Path) -> dict:
     checks' verdicts."""
     wall, cpu = time.perf_counter(), time.process_time()
     from rigkit.capture.actions import create_session
-    from rigkit.capture.field import (
-        add_position_frame,
-        burst_misfit,
-        frames_at,
-        newest_failed,
-        onsite_checks,
-    )
+    from rigkit.capture.field import frames_at, ingest, newest_failed, onsite_checks
     from rigkit.capture.views import check_image
     from rigkit.synth import load_scene
 
@@ -77,10 +73,12 @@ def burst_in_turn(rig: Path, scene: Path) -> dict:
         session = create_session(Path(folder) / "burst", rig)
         for number, path in enumerate(load_scene(scene).frame_paths("left"), 1):
             wall, cpu = time.perf_counter(), time.process_time()
-            retake = newest_failed(session, "left")
-            if not retake and burst_misfit(session, "left", path) is not None:
+            retake = newest_failed(session, "left")  # as the field TUI ingests a frame
+            done = ingest(session, "left", path, replace_existing=retake, burst=not retake,
+                          check_burst=not retake)
+            if done.held is not None:
                 raise SystemExit(f"{path}: held as not of the burst")
-            session = add_position_frame(session, "left", path, retake)
+            session = done.session
             out[f"frame {number} in"] = (time.perf_counter() - wall, time.process_time() - cpu)
             wall, cpu = time.perf_counter(), time.process_time()
             checks = onsite_checks(session, "left")
@@ -94,9 +92,8 @@ def burst_in_turn(rig: Path, scene: Path) -> dict:
 def run(session: Path, positions: list[str], burst: Path | None = None) -> dict:
     """:func:`check_in_turn` (or :func:`burst_in_turn`) in a fresh process."""
     what = ["--one-burst", str(burst)] if burst else ["--one", *positions]
-    done = subprocess.run([sys.executable, __file__, str(session), *what],
-                          capture_output=True, text=True, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    printed = run_script("bench_check", str(session.resolve()), *what)
+    return json.loads(printed.strip().splitlines()[-1])
 
 
 def rendered_session(work: Path) -> Path:
@@ -112,11 +109,11 @@ def spread(values: list[float]) -> str:
     return f"{statistics.median(values):5.2f} ({min(values):.2f}-{max(values):.2f})"
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("session", nargs="?", type=Path)
-    ap.add_argument("--work", type=Path, default=Path("out/bench"))
+    ap.add_argument("--work", type=Path, default=OUT / "bench")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--alone", action="store_true",
                     help="each position in a fresh process of its own")
@@ -124,7 +121,7 @@ def main() -> int:
                     help="a synthetic burst scene whose left frames arrive one by one")
     ap.add_argument("--one", nargs="+", choices=POSITIONS, help=argparse.SUPPRESS)
     ap.add_argument("--one-burst", type=Path, help=argparse.SUPPRESS)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.one:
         print(json.dumps(check_in_turn(args.session, args.one)))
         return 0

@@ -1,8 +1,8 @@
 """How long the command line takes to answer without running anything (issue 38):
 `rigkit --help`, a command's `--help` and a mistyped command, each a whole process.
 
-    python benchmarks/bench_cli.py --runs 15
-    PYTHONPATH=/path/to/other/checkout python benchmarks/bench_cli.py   # another rigkit
+    python -m benchmarks.bench_cli --runs 15
+    PYTHONPATH=/path/to/other/checkout python -m benchmarks.bench_cli   # another rigkit
 
 Runs `python -m rigkit ARGS` with this interpreter and environment from a neutral
 folder, so that PYTHONPATH, not the current folder, picks the rigkit timed (named in the

@@ -3,7 +3,7 @@ and full 4608x3456 resolution (one synthetic triple each, rendered once and cach
 and side by side the time of a plain reading of the paper's method on the same images
 (rigkit's matcher, then :func:`rigkit.experiments.paper.paper_depth`).
 
-    python benchmarks/bench_depth.py [--work out/bench] [--sizes 1152,2304,4608] [--burst 5]
+    python -m benchmarks.bench_depth [--work out/bench] [--sizes 1152,2304,4608] [--burst 5]
                                      [--default-memory]
 
 Each size runs in a fresh process so that peak memory (max RSS) is its own; the
@@ -20,16 +20,17 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
 
+from benchmarks.common import OUT, run_script
+
 
 def run_one(scene: Path, tune: bool) -> dict:
     from rigkit.core.memory import tune_for_images
+    from rigkit.imagefile.decode import load_grey
     from rigkit.pipeline import RigGeometry, estimate_depth
-    from rigkit.pipeline.images import load_grey
     from rigkit.synth import load_scene
 
     if tune:  # as the rigkit command does
@@ -46,7 +47,8 @@ def run_one(scene: Path, tune: bool) -> dict:
     else:
         imgs = [load_grey(truth.image_path(v)) for v in views]
     t_load = time.perf_counter() - t0
-    res = estimate_depth(*imgs, rig)
+    left, right, back = imgs
+    res = estimate_depth(left, right, back, rig)
     total = time.perf_counter() - t0
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
@@ -75,18 +77,18 @@ def paper_seconds(imgs: list, truth) -> float:
     return time.perf_counter() - t0
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("--work", type=Path, default=Path("out/bench"))
+    ap.add_argument("--work", type=Path, default=OUT / "bench")
     ap.add_argument("--sizes", default="1152,2304,4608")
     ap.add_argument("--burst", type=int, default=1, help="frames per position (default 1)")
     ap.add_argument("--default-memory", action="store_true",
                     help="leave the C allocator's and NumPy's defaults for large arrays, "
                     "to see what rigkit.core.memory saves")
     ap.add_argument("--one", type=Path, help=argparse.SUPPRESS)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.one:
         print(json.dumps(run_one(args.one, tune=not args.default_memory)))
         return 0
@@ -103,14 +105,9 @@ def main() -> int:
         if not (scene / "scene.yaml").is_file():
             params = SynthParams(width=w, height=h, burst=args.burst)
             write_scene(generate_scene(params, seed=1), scene)
-        out = subprocess.run(
-            [sys.executable, __file__, "--one", str(scene)]
-            + (["--default-memory"] if args.default_memory else []),
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        r = json.loads(out.stdout.strip().splitlines()[-1])
+        printed = run_script("bench_depth", "--one", str(scene.resolve()),
+                             *(["--default-memory"] if args.default_memory else []))
+        r = json.loads(printed.strip().splitlines()[-1])
         print(
             f"{w:>5}x{h:<5} {w * h / 1e6:6.1f}M {r['load']:5.2f} {r['matching']:6.2f} "
             f"{r['lens']:5.2f} {r['rectification']:5.2f} {r['stereo']:6.2f} "

@@ -2,8 +2,8 @@
 process to its first screen drawn, and to the session's step, in a pseudo-terminal of
 80x24, each a whole process.
 
-    python benchmarks/bench_field_start.py --runs 5
-    PYTHONPATH=/path/to/other/checkout python benchmarks/bench_field_start.py   # another rigkit
+    .venv/bin/python -m benchmarks.bench_field_start --runs 5
+    PYTHONPATH=/path/to/other/checkout:. .venv/bin/python -m benchmarks.bench_field_start
 
 Cases: a new session (it opens at the rig step: "focal length" on screen), and
 `--demo` (its first screen, and the rig step once the scene is rendered; with
@@ -31,8 +31,9 @@ import termios
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-RIG = ROOT / "rigs" / "p1000-tripod.yaml"
+from benchmarks.common import RIGS
+
+RIG = RIGS / "p1000-tripod.yaml"
 NEUTRAL = tempfile.gettempdir()
 """Where the processes start: `python -m` puts its folder first on sys.path."""
 TITLE = b"rigkit field"

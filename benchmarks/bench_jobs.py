@@ -2,7 +2,7 @@
 Dask cluster, whole commands, several runs each (issue 34: N workers must use N cores,
 not N x cores).
 
-    python benchmarks/bench_jobs.py --runs 3 --work out/bench-jobs
+    python -m benchmarks.bench_jobs --runs 3 --work out/bench-jobs
 
 Copies the bundled example session (1536x1152 px, bursts of 5) --sessions times into
 WORK, then times, in turn and --runs times each: `rigkit process --jobs 1`, `--jobs 2`,
@@ -25,14 +25,15 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from benchmarks.common import OUT, ROOT
+
 EXAMPLE = ROOT / "capture" / "example"
 RIGKIT = [sys.executable, "-m", "rigkit"]
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--work", type=Path, default=ROOT / "out" / "bench-jobs")
+    parser.add_argument("--work", type=Path, default=OUT / "bench-jobs")
     parser.add_argument("--sessions", type=int, default=3)
     parser.add_argument("--runs", type=int, default=3)
     args = parser.parse_args(argv)

@@ -1,8 +1,8 @@
 """Batch processing at full resolution: time, peak memory per worker and the laser
 comparisons' accuracy over synthetic sessions.
 
-    python benchmarks/bench_process.py --seeds 101-104 --work out/eval20
-    python benchmarks/bench_process.py --seeds 1-2 --width 1152 --height 864 --work out/small
+    python -m benchmarks.bench_process --seeds 101-104 --work out/eval20
+    python -m benchmarks.bench_process --seeds 1-2 --width 1152 --height 864 --work out/small
 
 Scenes are taken from WORK/scenes/seed-N (as benchmarks/eval_synthetic.py renders them)
 or rendered when missing, copied to WORK/sessions/seed-N and given laser targets. With
@@ -22,8 +22,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import yaml
-from eval_synthetic import seed_list  # this folder is on sys.path when run as a script
 
+from benchmarks.common import OUT, seed_list
 from rigkit.batch import auto_jobs, run_batch
 from rigkit.batch.pool import BASE_BYTES, BYTES_PER_PIXEL
 from rigkit.capture import is_session, load_session
@@ -53,18 +53,20 @@ def prepare(seed: int, params: SynthParams, work: Path, targets: int, raw: bool)
 
 def to_dng_frames(folder: Path) -> None:
     """Replace the rendered PNGs by 12-bit DNG mosaics of the same (linearised) light."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from dngutil import write_dng
+    from tests.dngutil import write_dng  # the tests' DNG writer (no rawpy needed)
 
     for view in ("left", "right", "back"):
-        grey = cv2.imread(str(folder / f"{view}.png"), cv2.IMREAD_GRAYSCALE) / 255.0
+        image = cv2.imread(str(folder / f"{view}.png"), cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            raise SystemExit(f"{folder / view}.png: cannot read it")
+        grey = image / 255.0
         linear = np.where(grey <= 0.04045, grey / 12.92, ((grey + 0.055) / 1.055) ** 2.4)
         write_dng(folder / f"{view}.dng", np.rint(0.6 * 4095 * linear).astype(np.uint16),
                   white_level=4095)
         (folder / f"{view}.png").unlink()
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -74,8 +76,8 @@ def main() -> int:
     ap.add_argument("--targets", type=int, default=8)
     ap.add_argument("--jobs", type=int, help="default: as rigkit process chooses")
     ap.add_argument("--raw", action="store_true", help="store the frames as DNG")
-    ap.add_argument("--work", type=Path, default=Path("out/eval"))
-    args = ap.parse_args()
+    ap.add_argument("--work", type=Path, default=OUT / "eval")
+    args = ap.parse_args(argv)
     params = SynthParams(width=args.width, height=args.height)
     sessions = [prepare(s, params, args.work, args.targets, args.raw)
                 for s in seed_list(args.seeds)]

@@ -1,9 +1,10 @@
-"""Accuracy on the authors' elephant scene, rendered (/work/shared/data/elephant, or
+"""Accuracy on the authors' elephant scene, rendered (../shared/data/elephant beside the
+checkout, or
 wherever ``--scene`` points: left/right/back.png, depth.npz, scene.json).
 
-    python benchmarks/eval_elephant.py                       # estimate, then score
-    python benchmarks/eval_elephant.py --depth out/el.npy    # score a saved estimate
-    python benchmarks/eval_elephant.py --save out/el.npy     # estimate, keep it, score
+    python -m benchmarks.eval_elephant                       # estimate, then score
+    python -m benchmarks.eval_elephant --depth out/el.npy    # score a saved estimate
+    python -m benchmarks.eval_elephant --save out/el.npy     # estimate, keep it, score
 
 It prints what ``rigkit eval`` prints for a synthetic scene (rigkit.synth.evaluate):
 
@@ -27,16 +28,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks.common import SHARED_DATA
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
-from rigkit.pipeline.images import load_grey
 from rigkit.synth.evaluate import OCCLUSION_TOLERANCE, depth_metrics
 
-SCENE = Path("/work/shared/data/elephant")
+SCENE = SHARED_DATA / "elephant"
 
 
 def judged_pixels(truth: np.ndarray, scene: dict) -> np.ndarray:
@@ -70,25 +73,26 @@ def judged_pixels(truth: np.ndarray, scene: dict) -> np.ndarray:
 
 def estimate(scene_dir: Path, scene: dict) -> np.ndarray:
     """The left view's depth as ``rigkit depth`` gives it: (H, W) float32, metres."""
-    images = [load_grey(scene_dir / f"{name}.png") for name in ("left", "right", "back")]
+    left, right, back = (load_grey(scene_dir / f"{name}.png")
+                         for name in ("left", "right", "back"))
     # One camera model for the three views (the same K): the rig says so, as a
     # profile's one_camera: true does.
     one_camera = all(k == scene["cameras"]["left"] for k in scene["cameras"].values())
     rig = RigGeometry(scene["f_px"], scene["C_lr"], scene["C_lb"], one_camera=one_camera)
     t0 = time.perf_counter()
-    result = estimate_depth(*images, rig)
+    result = estimate_depth(left, right, back, rig)
     print(f"estimated in {time.perf_counter() - t0:.1f} s; "
           f"no-surface {100 * result.no_surface.mean():.1f} % of the frame, "
           f"views disagree {100 * result.disagree.mean():.2f} %")
     return result.depth
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", type=Path, default=SCENE, help="the scene's folder")
     ap.add_argument("--depth", type=Path, help="score this (H, W) .npy instead of estimating")
     ap.add_argument("--save", type=Path, help="keep the estimate here (.npy)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     scene = json.loads((args.scene / "scene.json").read_text())
     truth = np.load(args.scene / "depth.npz")["depth"].astype(np.float32)
     depth = np.load(args.depth) if args.depth else estimate(args.scene, scene)
@@ -106,4 +110,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(main())

@@ -2,8 +2,8 @@
 orientation fit (rigkit.export.georef.wahba_rotation) moves points at 300 m, by number
 of targets, for the P1000 tripod's 4.95 x 3.72 degree view.
 
-    python benchmarks/georef_budget.py
-    python benchmarks/georef_budget.py --azimuth-sigma 1 --inclination-sigma 0.25 --trials 2000
+    python -m benchmarks.georef_budget
+    python -m benchmarks.georef_budget --azimuth-sigma 1 --inclination-sigma 0.25 --trials 2000
 
 Each trial puts n targets at random pixels of the inner 80 % of the image (drawn again
 when they span less than rigkit's minimum), adds independent Gaussian errors to each
@@ -16,19 +16,20 @@ from __future__ import annotations
 
 import argparse
 import math
-from pathlib import Path
+import sys
 
 import numpy as np
 
+from benchmarks.common import RIGS
+from rigkit.capture.tripod import enu_direction
 from rigkit.export.georef import (
     MIN_SPREAD_DEG,
     MIN_SPREAD_FRACTION,
-    enu_direction,
     wahba_rotation,
 )
 from rigkit.rig import load_rig
 
-RIG = Path(__file__).resolve().parents[1] / "rigs" / "p1000-tripod.yaml"
+RIG = RIGS / "p1000-tripod.yaml"
 
 RANGE_M = 300.0
 
@@ -57,16 +58,18 @@ def trial(rng: np.random.Generator, n: int, size: tuple[int, int], f: float,
     fitted = wahba_rotation(rays, seen)
     centre = np.array([0.0, 0.0, 1.0])
     corner = unit(np.array([width / 2 / f, height / 2 / f, 1.0]))
-    return tuple(RANGE_M * float(np.linalg.norm((fitted - truth) @ p)) for p in (centre, corner))
+    centre_m, corner_m = (RANGE_M * float(np.linalg.norm((fitted - truth) @ p))
+                          for p in (centre, corner))
+    return centre_m, corner_m
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--azimuth-sigma", type=float, default=1.0, help="deg, per target")
     parser.add_argument("--inclination-sigma", type=float, default=0.25, help="deg")
     parser.add_argument("--trials", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     rig = load_rig(RIG)
     size, f = rig.image_size, rig.focal_px
     fov = 2 * math.degrees(math.atan(math.hypot(*size) / 2 / f))
@@ -80,7 +83,8 @@ def main() -> None:
                                  min_spread) for _ in range(args.trials)])
         rms = np.sqrt((errors**2).mean(axis=0))
         print(f"{n:>7}  {rms[0]:12.2f}  {rms[1]:12.2f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

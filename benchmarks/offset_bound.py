@@ -2,7 +2,7 @@
 depth bias: the pipeline's offset error against the Cramér–Rao bound under the scene's
 shimmer.
 
-    python benchmarks/offset_bound.py out/field20/scenes/seed-2*
+    python -m benchmarks.offset_bound out/field20/scenes/seed-2*
 
 Per rendered scene (``rigkit synth`` with heat shimmer of the gaussian or vonkarman
 spectrum; a burst scene is read as ``rigkit depth`` reads one, its frames stacked),
@@ -39,9 +39,9 @@ import numpy as np
 from rigkit.capture.frames import frame_files, load_capture
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import load_scene
 from rigkit.synth.bound import TRACKER_PX, offset_bound
 from rigkit.synth.evaluate import offset_error_px, visible_in_right
@@ -122,8 +122,9 @@ def main(argv: list[str] | None = None) -> int:
               + f" ({row['points']:.0f} grid points)", file=sys.stderr, flush=True)
     if not rows:
         return 1
-    table = [[n] + [f"{r[c]:+.2f}" for c in cols[:-1]] + [f"{r['P(bound)']:.2f}"]
-             for n, r in zip(names, rows, strict=True)]
+    table: list[list[str] | None] = [
+        [n] + [f"{r[c]:+.2f}" for c in cols[:-1]] + [f"{r['P(bound)']:.2f}"]
+        for n, r in zip(names, rows, strict=True)]
     rms = [f"{math.sqrt(np.mean([r[c] ** 2 for r in rows])):.2f}" for c in cols[:-1]]
     table += [None, ["RMS", *rms, ""]]
     print("px of disparity offset; P(bound): the chance of the bar at the bound")

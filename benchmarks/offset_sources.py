@@ -1,7 +1,7 @@
 """Where a scene's disparity-offset error comes from: re-fit the offset with parts of
 the measured data replaced by the truth.
 
-    python benchmarks/offset_sources.py out/field20/scenes/seed-2*
+    python -m benchmarks.offset_sources out/field20/scenes/seed-2*
 
 For rendered scenes (``rigkit synth``, ground truth in the folder), per scene:
 
@@ -33,10 +33,10 @@ import cv2
 import numpy as np
 
 from rigkit.errors import RigkitError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.ambiguity import remove_ambiguity
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import SceneTruth, load_scene
 from rigkit.synth.evaluate import offset_error_px
 from rigkit.synth.shimmer import displacement_field

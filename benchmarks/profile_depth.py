@@ -3,7 +3,7 @@
 writing the outputs) and, with ``--profile N``, cProfile's N costliest functions by
 cumulative and by own time.
 
-    python benchmarks/profile_depth.py LEFT RIGHT BACK --focal-px F --baseline-lr M
+    python -m benchmarks.profile_depth LEFT RIGHT BACK --focal-px F --baseline-lr M
         --baseline-lb M [--out out/profile/depth.npy] [--profile 40] [--repeat 3]
 
 A position given as comma-separated files is a burst (as ``rigkit depth`` takes it).
@@ -31,6 +31,8 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+from benchmarks.common import OUT
 
 STAGES = ("matching", "lens", "rectification", "stereo", "ambiguity", "agreement", "depth")
 
@@ -98,7 +100,7 @@ class RssSampler:
         return max((mb for t, mb in self.samples if t0 <= t <= t1), default=float("nan"))
 
 
-def depth_parser(description: str, out: str) -> argparse.ArgumentParser:
+def depth_parser(description: str, out: Path) -> argparse.ArgumentParser:
     """The arguments of a ``rigkit depth`` run to measure: the three positions (a
     comma-separated burst each, or one file), the rig's three numbers, and ``--out``
     (default ``out``)."""
@@ -108,7 +110,7 @@ def depth_parser(description: str, out: str) -> argparse.ArgumentParser:
         ap.add_argument(position)
     for flag in ("--focal-px", "--baseline-lr", "--baseline-lb"):
         ap.add_argument(flag, required=True)
-    ap.add_argument("--out", type=Path, default=Path(out))
+    ap.add_argument("--out", type=Path, default=out)
     return ap
 
 
@@ -119,8 +121,8 @@ def depth_argv(args: argparse.Namespace) -> list[str]:
             "--out", str(args.out), "--quiet"]
 
 
-def main() -> int:
-    ap = depth_parser(__doc__, "out/profile/depth.npy")
+def main(argv: list[str] | None = None) -> int:
+    ap = depth_parser(__doc__, OUT / "profile" / "depth.npy")
     ap.add_argument("--profile", type=int, default=0, metavar="N",
                     help="print cProfile's N costliest functions (default: no profile)")
     ap.add_argument("--repeat", type=int, default=1)
@@ -130,7 +132,7 @@ def main() -> int:
                     help="CPU seconds of the process per stage instead of wall seconds")
     ap.add_argument("--busy", action="store_true",
                     help="under each run's wall seconds, the cores each stage kept busy")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.busy and args.cpu:
         ap.error("--busy goes with wall seconds: leave out --cpu")
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """Heat shimmer measured from two frames of a burst against what the scene was rendered
 with (what `rigkit field` shows from a position's second frame on).
 
-    python benchmarks/shimmer_measure.py out/fieldb5/scenes/seed-2*
+    python -m benchmarks.shimmer_measure out/fieldb5/scenes/seed-2*
 
 For each rendered burst scene (``rigkit synth --burst N`` with shimmer), each position's
 frames 1 and 2: the measured RMS per axis and correlation length against the scene's
@@ -19,7 +19,7 @@ import numpy as np
 
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
-from rigkit.pipeline.images import load_grey
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline.shimmer import measure_shimmer
 from rigkit.synth import load_scene
 

@@ -6,7 +6,7 @@ sum divided by N. Everything else the run does (NumPy, the fits, Python itself, 
 disk) comes on top, so no arrangement of this run's work over N cores can end sooner;
 the whole run's CPU seconds divided by N, printed last, is the least with that on top.
 
-    python benchmarks/speed_floor.py LEFT RIGHT BACK --focal-px F --baseline-lr M
+    python -m benchmarks.speed_floor LEFT RIGHT BACK --focal-px F --baseline-lr M
         --baseline-lb M [--cores 2] [--out out/floor/depth.npy]
 
 A position given as comma-separated files is a burst (as ``rigkit depth`` takes it).
@@ -28,7 +28,8 @@ from collections import defaultdict
 from collections.abc import Callable
 from typing import Any
 
-from profile_depth import depth_argv, depth_parser  # the script beside this one
+from benchmarks.common import OUT
+from benchmarks.profile_depth import depth_argv, depth_parser
 
 KINDS = {
     "imdecode": "decoding the frames",
@@ -92,10 +93,10 @@ def import_seconds() -> float:
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def main() -> int:
-    ap = depth_parser(__doc__, "out/floor/depth.npy")
+def main(argv: list[str] | None = None) -> int:
+    ap = depth_parser(__doc__, OUT / "floor" / "depth.npy")
     ap.add_argument("--cores", type=int, default=2, help="cores the floor is for (default 2)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     args.out.parent.mkdir(parents=True, exist_ok=True)
 
     import cv2

@@ -18,8 +18,9 @@ echo "versions: $("$venv/bin/python" -m pip freeze 2>/dev/null \
     | grep -iE '^(numpy|scipy|opencv-python-headless|textual|dask)==' | paste -sd' ' || true)"
 "$venv/bin/ruff" check rigkit tests benchmarks
 "$venv/bin/lint-imports"
-"$venv/bin/mypy" rigkit
+"$venv/bin/mypy" rigkit benchmarks
 # Every test, slow ones included, in one worker process per core (pytest-xdist), a test
 # file per worker at a time so that its module fixtures are built once; `-n 0` after the
-# script's name runs them in this process.
-"$venv/bin/python" -m pytest -n auto --dist loadfile "$@"
+# script's name runs them in this process. Skipped tests are listed with their reasons
+# (-rs) and the slowest are named (--durations), so neither goes unseen.
+"$venv/bin/python" -m pytest -n auto --dist loadfile -rs --durations=15 "$@"

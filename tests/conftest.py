@@ -32,8 +32,11 @@ from rigkit.capture.comparisons import (
     Comparison,
     append_rows,
 )
+from rigkit.capture.model import Session
+from rigkit.capture.results import RecordedFrame, RunRecord
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import DepthResult, RigGeometry, estimate_depth
-from rigkit.pipeline.images import load_grey
+from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth import SceneTruth, SynthParams, generate_scene, load_scene, write_scene
 
 SMALL = SynthParams(width=960, height=720)
@@ -105,6 +108,20 @@ def processed_session(synth_session: Path, tmp_path_factory: pytest.TempPathFact
     return out
 
 
+@pytest.fixture(scope="session")
+def processed_small(small_session: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``small_session`` after one ``rigkit process`` run (read-only, like it): for
+    tests of what a run leaves in a session rather than of its depth."""
+    import shutil
+
+    from rigkit.batch import process_session
+
+    out = tmp_path_factory.mktemp("processed") / "small-seed-3"
+    shutil.copytree(small_session, out)
+    process_session(out, "20260101T000000Z-0002")
+    return out
+
+
 def copy_session(
     source: Path, folder: Path, name: str | None = None, edit: Callable | None = None
 ) -> Path:
@@ -121,6 +138,24 @@ def copy_session(
         edit(data)
         (out / "session.yaml").write_text(yaml.safe_dump(data))
     return out
+
+
+def make_record(session: Session | None = None, **changes: object) -> RunRecord:
+    """A run's record as rigkit writes it (:class:`rigkit.capture.results.RunRecord`):
+    a 400x300 map of a rig of f 4000 px and 2 m baselines or, given a ``session``, of
+    its frames, rig (and its lens) and targets as they are; with ``changes`` to its
+    fields."""
+    made = {} if session is None else {
+        "frames": {pos: tuple(RecordedFrame(f.file, f.sha256) for f in burst)
+                   for pos, burst in session.bursts.items()},
+        "rig": session.rig().geometry(), "settings": session.rig().pipeline_settings(),
+        "lens": session.rig().geometry().distortion, "targets": session.targets}
+    record = RunRecord(frames={}, rig=RigGeometry(4000.0, 2.0, 2.0),
+                       settings=PipelineSettings(), rig_name="synthetic",
+                       image_size_px=(400, 300), left_camera_px=(4000.0, 199.5, 149.5),
+                       lens=(0.0,) * 5, burst_length=1, median_depth_m=300.0,
+                       offset_px=0.4, offset_sigma_px=0.05, offset_depth_fraction=0.001)
+    return replace(record, **{**made, **changes})  # type: ignore[arg-type]
 
 
 def rig_file(folder: Path, size: tuple[int, int], base: str = "synthetic.yaml",

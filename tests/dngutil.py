@@ -34,7 +34,7 @@ _CFA_CODES = {"R": 0, "G": 1, "B": 2}
 EXIF_IFD_POINTER = 34665
 _PLACEHOLDER = EXIF_IFD_POINTER + 1  # an unregistered code tifffile will write
 
-# The keys :func:`write_dng` accepts in ``exif`` (named like rigkit.capture.exif.ExifInfo fields).
+# The keys :func:`write_dng` accepts in ``exif`` (named like rigkit.imagefile.exif.ExifInfo fields).
 EXIF_KEYS = frozenset(
     {
         "make",

@@ -19,16 +19,23 @@ and what to record out.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from rigkit import __version__
 from rigkit.capture.checks import capture_warnings
 from rigkit.capture.frames import FrameFile, load_capture
-from rigkit.capture.session import POSITIONS
+from rigkit.capture.model import POSITIONS, Target
+from rigkit.capture.results import (
+    RecordedFrame,
+    RunFiles,
+    RunRecord,
+)
+from rigkit.core.files import Content
 from rigkit.core.lazy import preload
 from rigkit.pipeline import DepthResult, estimate_depth
 from rigkit.pipeline.shimmer import Shimmer
@@ -36,8 +43,6 @@ from rigkit.rig.bursts import burst_warning
 from rigkit.rig.profile import RigProfile
 
 Progress = Callable[[str, float], None]
-RigAtSize = Callable[[tuple[int, int]], RigProfile]
-"""A rig whose profile depends on the frames' size (one given by command-line values)."""
 
 
 @dataclass(frozen=True)
@@ -58,29 +63,64 @@ class DepthRun:
     warnings: tuple[str, ...]
     shortfalls: tuple[str, ...] = ()
 
-    def metadata(self) -> dict[str, Any]:
-        """The run as JSON-ready data (the body of ``depth.json``): frames, rig,
-        warnings, shimmer, and the pipeline's diagnostics."""
-        rig = self.profile.geometry()
-        camera = self.profile.intrinsics((self.left.shape[1], self.left.shape[0]))
-        return {
-            "frames": {pos: [_frame_meta(f) for f in self.bursts[pos]] for pos in POSITIONS},
-            "burst_length": self.burst_length,
-            "image_size_px": [self.left.shape[1], self.left.shape[0]],
-            "rig": {"name": self.profile.name, "focal_px": rig.focal_px,
-                    "baseline_lr_m": rig.baseline_lr_m, "baseline_lb_m": rig.baseline_lb_m,
-                    "distortion_k1_k2_p1_p2_k3": list(rig.distortion),
-                    "one_camera": rig.one_camera,
-                    "principal_points_px": [list(p) for p in rig.principal_points_px]},
-            # Back-projection of the depth map (rigkit export), pixel centres at integers.
-            "left_camera_px": {"f": camera.focal_px, "cx": camera.cx_px, "cy": camera.cy_px},
-            "warnings": list(self.warnings),
-            "shortfalls": list(self.shortfalls),
-            "shimmer": {"frames": self.shimmer[1], **self.shimmer[0].as_dict()}
-            if self.shimmer else None,
-            **self.result.diagnostics(),
-        }
+    def record(self, targets: Sequence[Target] = (), run_id: str | None = None,
+               time_utc: str | None = None) -> RunRecord:
+        """The run's :class:`~rigkit.capture.results.RunRecord` (``depth.json``), with
+        the laser ``targets`` it was compared with and, for a processing run, its
+        ``run_id`` and ``time_utc``."""
+        result = self.result
+        fraction = result.offset_depth_fraction
+        diagnostics = result.diagnostics()
+        return RunRecord(
+            frames={pos: tuple(RecordedFrame(f.shown, f.sha256) for f in burst)
+                    for pos, burst in self.bursts.items()},
+            rig=self.profile.geometry(),
+            settings=result.settings,
+            targets=tuple(targets),
+            rig_name=self.profile.name,
+            image_size_px=self.size,
+            left_camera_px=self.left_camera_px(),
+            lens=result.distortion,
+            burst_length=self.burst_length,
+            median_depth_m=result.median_depth_m if math.isfinite(result.median_depth_m)
+            else None,
+            offset_px=result.ambiguity.offset_px,
+            offset_sigma_px=result.ambiguity.offset_sigma_px,
+            offset_depth_fraction=fraction if math.isfinite(fraction) else None,
+            shortfalls=self.shortfalls,
+            warnings=self.warnings,
+            run_id=run_id,
+            time_utc=time_utc,
+            rigkit_version=__version__ if run_id is not None else None,
+            details={**diagnostics, "shimmer": {"frames": self.shimmer[1],
+                                                **self.shimmer[0].as_dict()}
+                     if self.shimmer else None},
+        )
 
+    def left_camera_px(self) -> tuple[float, float, float]:
+        """(f, cx, cy) px: the left view's focal length and principal point as the run
+        took them, pixel centres at integers: the centre the lens fit gave the left view
+        (:attr:`rigkit.pipeline.distortion.LensFit.centres_px`), else the rig profile's
+        (:meth:`rigkit.rig.profile.RigProfile.intrinsics`)."""
+        camera = self.profile.intrinsics(self.size)
+        fit = self.result.lens_fit
+        if fit is None:
+            return camera.focal_px, camera.cx_px, camera.cy_px
+        (width, height), (dx, dy) = self.size, fit.centres_px[0]
+        return camera.focal_px, (width - 1) / 2 + dx, (height - 1) / 2 + dy
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """The depth map's (W, H), px."""
+        return self.left.shape[1], self.left.shape[0]
+
+    def outputs(self, files: RunFiles, record: RunRecord) -> dict[str, Content]:
+        """What the run writes, by file name (``files``' names, in one folder): depth,
+        sigma, grey, flags and ``record``."""
+        result = self.result
+        return {files.depth.name: result.depth, files.sigma.name: result.sigma,
+                files.grey.name: self.left_grey(), files.flags.name: result.flags(),
+                files.record.name: record.to_json()}
 
     def left_grey(self) -> np.ndarray:
         """The left image the depth map lies on as (H, W) uint8 grey, for the point
@@ -88,55 +128,45 @@ class DepthRun:
         return np.clip(np.rint(self.left), 0, 255).astype(np.uint8)
 
 
-def _frame_meta(frame: FrameFile) -> dict[str, str]:
-    meta = {"file": frame.shown}
-    if frame.sha256:
-        meta["sha256"] = frame.sha256
-    return meta
-
-
 def run_depth(
     bursts: Mapping[str, Sequence[FrameFile]],
-    rig: RigProfile | RigAtSize,
+    rig: RigProfile,
     *,
     cache_dir: Path | None = None,
     force: bool = False,
     progress: Progress | None = None,
+    size_from: str | None = None,
 ) -> DepthRun:
     """Depth of the left view from a capture (position -> its frames, oldest first) and
-    its rig: a profile, whose image size every frame must have, or a function giving
-    the profile for the frames' size. ``cache_dir`` keeps decoded RAW frames by content
-    hash; ``force`` runs despite a fatal EXIF finding. RigkitError (one line) for a
-    capture that cannot give a trustworthy depth map."""
+    its rig profile, whose image size every frame must have (``size_from`` says where
+    that size came from, for messages: "the left frame a.png is"; default the profile).
+    ``cache_dir`` keeps decoded RAW frames by content hash; ``force`` runs despite a
+    fatal EXIF finding. RigkitError (one line) for a capture that cannot give a
+    trustworthy depth map."""
     report = progress or (lambda stage, fraction: None)
     # The pipeline's fits need SciPy's optimisers: imported while the frames decode.
     preload("scipy.optimize")
     firsts = {pos: bursts[pos][0].path for pos in POSITIONS if bursts.get(pos)}
-    if isinstance(rig, RigProfile):  # EXIF first: a wrong zoom stops before decoding
-        warnings = capture_warnings(rig, firsts, force)
-        loaded = load_capture(bursts, rig.image_size, cache_dir, f"rig profile {rig.name}")
-        profile = rig
-    else:
-        loaded = load_capture(bursts, None, cache_dir)
-        profile = rig(loaded.size)
-        warnings = capture_warnings(profile, firsts, force)
+    warnings = capture_warnings(rig, firsts, force)  # a wrong zoom stops before decoding
+    loaded = load_capture(bursts, rig.image_size, cache_dir, f"rig profile {rig.name}",
+                          size_from)
     report("reading frames", 0.1)
-    geometry = profile.geometry()
+    geometry = rig.geometry()
     result = estimate_depth(
-        *loaded.images, geometry, settings=profile.pipeline_settings(),
+        *loaded.images, geometry, settings=rig.pipeline_settings(),
         progress=lambda stage, f: report(stage, 0.1 + 0.8 * f),
     )
     length = min(len(bursts[pos]) for pos in POSITIONS)
-    found = [result.offset_warning(length)]
+    found = [result.relief_warning(), result.offset_warning(length)]
     if loaded.shimmer is not None:
-        found.append(burst_warning(profile, *loaded.shimmer, result.median_depth_m, length))
+        found.append(burst_warning(rig, *loaded.shimmer, result.median_depth_m, length))
     shortfalls = tuple(filter(None, found))
     if result.lens_fit is not None and (lens_note := result.lens_fit.warning()):
         warnings = (*warnings, lens_note)
     return DepthRun(
         result=result,
         left=loaded.images[0],
-        profile=profile,
+        profile=rig,
         bursts={pos: tuple(bursts[pos]) for pos in POSITIONS},
         shimmer=loaded.shimmer,
         burst_length=length,

@@ -10,7 +10,6 @@ hidden folder, then swapped in) and appends one row per target to the session's
 
 from __future__ import annotations
 
-import json
 import secrets
 import time
 from collections.abc import Callable
@@ -20,28 +19,18 @@ from pathlib import Path
 
 import numpy as np
 
-from rigkit import __version__
 from rigkit.batch.compare import compare_target
 from rigkit.batch.depthrun import run_depth
 from rigkit.capture.actions import changing, frame_problems, session_frames
 from rigkit.capture.comparisons import LOG_NAME, Comparison, append_rows, csv_text
-from rigkit.capture.session import (
-    DERIVED_DIR,
-    HISTORY_FILE,
-    RESULTS_DIR,
-    Session,
-    load_session,
-    log_event,
-    run_metadata,
-    stray_readings,
-    utc_now,
-)
+from rigkit.capture.model import DERIVED_DIR, HISTORY_FILE, Session, stray_readings
+from rigkit.capture.results import RESULTS_DIR, RunFiles, session_record
+from rigkit.capture.session import load_session, log_event, utc_now
 from rigkit.core.files import Content, check_free_space, replace_folder
 from rigkit.core.safefs import check_regular
 from rigkit.errors import InputError
 from rigkit.reporting.previews import preview_set
-from rigkit.reporting.scale import RunReference, run_scale_note
-from rigkit.reporting.verdict import Verdict, judge
+from rigkit.reporting.verdict import Verdict, run_verdict
 
 StageReport = Callable[[str, float], None]
 RESULT_BYTES_PER_PIXEL = 13
@@ -126,24 +115,21 @@ def _process_locked(
     except InputError as exc:
         raise InputError(f"{session.path}: {exc}") from None
     result = run.result
+    record = run.record(session.targets, run_id, utc_now())
+    lens = record.left_lens  # the lens rigkit export back-projects through
     rows = tuple(
-        compare_target(session, target, result.depth, result.sigma, run_id)
+        compare_target(session, target, result.depth, result.sigma, run_id, lens,
+                       (result.offset_depth_fraction, result.median_depth_m))
         for target in session.targets
     )
     report("writing results", 0.92)
-    meta = {"run_id": run_id, "rigkit_version": __version__, "time_utc": utc_now(),
-            **run.metadata()}
     files: dict[str, Content] = {
-        "depth.npy": result.depth,
-        "sigma.npy": result.sigma,
-        "depth.json": json.dumps(meta, indent=2),
-        "grey.png": run.left_grey(),
-        "flags.npy": result.flags(),
+        **run.outputs(RunFiles.of_session(session.path), record),
         **preview_set(run.left, result.depth, result.sigma, session.targets, rows,
                       result.disagree),
     }
     if rows:
-        files["comparisons.csv"] = csv_text(rows)
+        files[LOG_NAME] = csv_text(rows)
     replace_folder(session.path, RESULTS_DIR, files, run_id)
     if rows:
         append_rows(session.path / LOG_NAME, rows)
@@ -151,9 +137,7 @@ def _process_locked(
     log_event(session.path, "process", f"run {run_id}: ok, {len(rows)} targets, {seconds:.1f} s")
     report("done", 1.0)
     density = float(np.isfinite(result.depth).mean())
-    reference = RunReference(result.median_depth_m, result.offset_depth_fraction)
-    verdict = judge(rows, run.profile, frames=run.burst_length, shortfalls=run.shortfalls,
-                    scale=run_scale_note(rows, run.profile, reference))
+    verdict = run_verdict(session, rows, run.profile, record)
     return Outcome(
         session.path, True, f"density {100 * density:.1f} %, {len(rows)} targets",
         seconds, rows, (*run.warnings, *stray_warnings(session)), verdict,
@@ -164,8 +148,11 @@ def _run_of_results(path: Path) -> str | None:
     """The run id of the session's results (None: none, or unreadable). Results and
     their rows are written under the lock, whole, once per run: a run id found here
     means this run's work is done (exactly once, whatever a cluster retries)."""
-    run = (run_metadata(path) or {}).get("run_id")
-    return run if isinstance(run, str) else None
+    try:
+        record = session_record(path)
+    except InputError:  # refused: no run's work is done
+        return None
+    return record.run_id if record is not None else None
 
 
 def stray_warnings(session: Session) -> list[str]:

@@ -12,21 +12,11 @@ from typing import TYPE_CHECKING
 from rigkit.core.lazy import exports
 
 if TYPE_CHECKING:
-    from rigkit.capture.actions import (
-        add_frame,
-        add_target,
-        create_session,
-        file_sha256,
-        frame_problems,
-    )
+    from rigkit.capture.actions import add_frame, create_session, file_sha256, frame_problems
     from rigkit.capture.comparisons import Comparison, latest_run, read_rows
+    from rigkit.capture.model import POSITIONS, Frame, LaserReading, Session, Target
+    from rigkit.capture.results import RESULTS_DIR
     from rigkit.capture.session import (
-        POSITIONS,
-        RESULTS_DIR,
-        Frame,
-        LaserReading,
-        Session,
-        Target,
         is_session,
         load_session,
         log_event,
@@ -34,6 +24,7 @@ if TYPE_CHECKING:
         session_to_data,
         utc_now,
     )
+    from rigkit.capture.targets import add_target
 
 __all__ = [
     "POSITIONS",
@@ -60,14 +51,14 @@ __all__ = [
 
 __getattr__ = exports(__name__, {
     "Comparison": "comparisons",
-    "Frame": "session",
-    "LaserReading": "session",
-    "POSITIONS": "session",
-    "RESULTS_DIR": "session",
-    "Session": "session",
-    "Target": "session",
+    "Frame": "model",
+    "LaserReading": "model",
+    "POSITIONS": "model",
+    "RESULTS_DIR": "results",
+    "Session": "model",
+    "Target": "model",
     "add_frame": "actions",
-    "add_target": "actions",
+    "add_target": "targets",
     "create_session": "actions",
     "file_sha256": "actions",
     "frame_problems": "actions",

@@ -9,45 +9,44 @@ atomically and logged in ``history.log``.
 from __future__ import annotations
 
 import hashlib
-import math
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
-from rigkit.capture.exif import ExifInfo, read_exif
 from rigkit.capture.frames import FrameFile, capture_problems
-from rigkit.capture.imagesize import check_before_copy
 from rigkit.capture.lock import session_lock
-from rigkit.capture.rawio import is_raw, load_linear_grey
-from rigkit.capture.session import (
-    DEFAULT_WINDOW_PX,
+from rigkit.capture.model import (
     DERIVED_DIR,
     EDIT_WAIT_S,
     POSITIONS,
     RAW_DIR,
-    RESULTS_DIR,
     SESSION_FILE,
     STAGING_DIR,
     Frame,
-    LaserReading,
     Session,
     Target,
+)
+from rigkit.capture.results import RESULTS_DIR, session_comparisons
+from rigkit.capture.session import (
     check_name,
     is_session,
     load_session,
     log_event,
-    run_metadata,
     save_session,
     utc_now,
 )
 from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
 from rigkit.core.safefs import real_folder, require_file
 from rigkit.errors import InputError
-from rigkit.rangefinder.ranging import max_range_m
+from rigkit.imagefile.exif import ExifInfo, read_exif
+from rigkit.imagefile.imagesize import check_before_copy
+from rigkit.imagefile.rawio import is_raw, load_linear_grey
 from rigkit.rig.profile import load_rig, rig_to_dict
 
 
@@ -108,38 +107,95 @@ def add_frame(
     origin: str | None = None,
 ) -> Session:
     """Copy ``source`` into ``raw/`` as a frame for ``position`` and record it; returns
-    the session as saved.
+    the session as saved (:func:`staged_frame`, then :func:`file_frame`)."""
+    with staged_frame(session, position, source, replace_existing=replace_existing,
+                      burst=burst) as staged:
+        return file_frame(staged, origin)
 
-    The file is copied byte for byte (never moved) into a staging folder outside
-    ``raw/``, hashed as it is copied, decoded and checked there: it must hold a picture,
-    have the rig's image size and that of the frames already taken, not be another
-    frame of the session, and be RAW if they are (or not if they are not). Only a frame
-    that passes is moved into ``raw/``; a refused one leaves nothing behind. Its EXIF is
-    recorded. A position that already has frames gets this one added to its burst with
-    ``burst``, or has them replaced by it with ``replace_existing`` (their files stay in
-    ``raw/``); otherwise it is refused. A file already in ``raw/`` (same name) is never
-    overwritten: identical content is reused, different content gets the position as a
-    prefix. ``origin`` is what session.yaml records as the frame's ``source``; by default
-    the file's absolute path (a file rigkit made itself says so instead, e.g.
-    ``rendered by rigkit synth, seed 7``, which does not depend on the machine).
 
-    The change is made under the session's lock on the session as it is on disk then
-    (:func:`rigkit.capture.lock.session_lock`), so concurrent changes all land.
-    """
+@dataclass(frozen=True)
+class StagedFrame:
+    """A frame on its way into a session (:func:`staged_frame`): ``session`` as it is on
+    disk under its lock; ``position``; ``source``, the file given; ``path``, its copy in
+    the staging folder; ``sha256``, the hash of the bytes copied (hex); ``grey``, the
+    copy decoded once, (H, W) float32 in [0, 1] of full scale
+    (:func:`rigkit.imagefile.rawio.load_linear_grey`; RAW: linear, kept in ``derived/``),
+    for every check of it (handed to the on-site checks, :func:`rigkit.capture.views.
+    admit`, which may scale it in place); ``raw``, whether it is camera RAW;
+    ``replace_existing`` and ``burst``, how it joins the position's frames."""
+
+    session: Session
+    position: str
+    source: Path
+    path: Path
+    sha256: str
+    grey: np.ndarray
+    raw: bool
+    replace_existing: bool = False
+    burst: bool = False
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(W, H) px."""
+        return self.grey.shape[1], self.grey.shape[0]
+
+
+@contextmanager
+def staged_frame(session: Session, position: str, source: str | Path, *,
+                 replace_existing: bool = False, burst: bool = False
+                 ) -> Iterator[StagedFrame]:
+    """``source`` staged for ``position``: copied, hashed and decoded once, and checked,
+    under the session's lock (:func:`changing`), for a :func:`file_frame` to record.
+
+    What is cheap to know is checked first (:func:`check_frame_file`). The file is then
+    copied byte for byte (never moved) into a staging folder outside ``raw/``, hashed as
+    it is copied, and checked there: a position that already has frames takes it only
+    as one more of its burst (``burst``), or as the frame that replaces them
+    (``replace_existing``; their files stay in ``raw/``); it must not be another frame
+    of the session, must be RAW if they are (or not if they are not), and, decoded,
+    must hold a picture of the rig's image size. A refused frame leaves nothing behind,
+    nor does one not filed before the block ends (the staged copy is removed then,
+    whatever happens)."""
     source = Path(source)
     check_frame_file(session, position, source)
-    with changing(session.path, "add-frame") as current:
-        with _staged(current.path, source) as (staged, sha256):
-            frame = _checked_frame(current, position, source, staged, sha256,
-                                   replace_existing, burst, origin)
-            stored = _store(current.path / RAW_DIR, staged, _text_name(source.name),
-                            position, sha256)
-        frame = replace(frame, file=f"{RAW_DIR}/{stored.name}")
-        before = () if replace_existing else current.bursts.get(position, ())
-        updated = replace(current, bursts={**current.bursts, position: (*before, frame)})
-        save_session(updated)
-        log_event(current.path, "add-frame",
-                  f"{position} {frame.file} sha256={frame.sha256} from {frame.source}")
+    with changing(session.path, "add-frame") as current, \
+            _staged(current.path, source) as (path, sha256):
+        _check_joins(current, position, source, path, sha256, replace_existing, burst)
+        rig = current.rig()  # every frame has its size, so all frames agree
+        try:
+            grey = load_linear_grey(path, current.path / DERIVED_DIR, sha256, rig.image_size,
+                                    f"the rig profile {rig.name} is for")
+        except InputError as exc:  # name the file the user gave, not the staged copy
+            raise InputError(str(exc).replace(str(path), str(source))) from None
+        yield StagedFrame(current, position, source, path, sha256, grey, is_raw(path),
+                          replace_existing, burst)
+
+
+def file_frame(staged: StagedFrame, origin: str | None = None) -> Session:
+    """Record ``staged`` in its session (inside :func:`staged_frame`'s block): linked into
+    ``raw/`` (a file already there of the same name is never overwritten: identical
+    content is reused, different content gets the position as a prefix), its EXIF read,
+    ``session.yaml`` saved and the change logged; returns the session as saved.
+    ``origin`` is what session.yaml records as the frame's ``source``; by default the
+    file's absolute path (a file rigkit made itself says so instead, e.g. ``rendered by
+    rigkit synth, seed 7``, which does not depend on the machine)."""
+    session, position, source = staged.session, staged.position, staged.source
+    stored = _store(session.path / RAW_DIR, staged.path, _text_name(source.name), position,
+                    staged.sha256)
+    frame = Frame(
+        position=position,
+        file=f"{RAW_DIR}/{stored.name}",
+        sha256=staged.sha256,
+        size_px=staged.size,
+        added_utc=utc_now(),
+        source=origin or _text_name(str(source.resolve())),
+        exif=exif_fields(read_exif(staged.path)),
+    )
+    before = () if staged.replace_existing else session.bursts.get(position, ())
+    updated = replace(session, bursts={**session.bursts, position: (*before, frame)})
+    save_session(updated)
+    log_event(session.path, "add-frame",
+              f"{position} {frame.file} sha256={frame.sha256} from {frame.source}")
     return updated
 
 
@@ -161,11 +217,12 @@ def _text_name(name: str) -> str:
     return os.fsencode(name).decode("utf-8", "replace").replace("\ufffd", "_")
 
 
-def _checked_frame(session: Session, position: str, source: Path, staged: Path,
-                   sha256: str, replace_existing: bool, burst: bool,
-                   origin: str | None) -> Frame:
-    """The Frame ``staged`` (a copy of ``source``) would be at ``position``, or
-    InputError naming ``source`` and what is wrong with it."""
+def _check_joins(session: Session, position: str, source: Path, staged: Path,
+                 sha256: str, replace_existing: bool, burst: bool) -> None:
+    """InputError naming ``source`` where ``staged`` (its copy, SHA-256 ``sha256``) cannot
+    join ``position``'s frames: it has some and neither ``burst`` nor
+    ``replace_existing`` says how, or the frames would not make a capture
+    (:func:`rigkit.capture.frames.capture_problems`: a frame twice, RAW mixed in)."""
     before = () if replace_existing else session.bursts.get(position, ())
     if before and not burst:
         raise InputError(
@@ -179,22 +236,8 @@ def _checked_frame(session: Session, position: str, source: Path, staged: Path,
     problems = capture_problems(bursts, complete=False)
     if problems:
         raise InputError("; ".join(problems))
-    rig = session.rig()  # every frame has its size, so all frames agree
-    try:
-        grey = load_linear_grey(staged, session.path / DERIVED_DIR, sha256, rig.image_size,
-                                f"the rig profile {rig.name} is for")
-    except InputError as exc:  # name the file the user gave, not the staged copy
-        raise InputError(str(exc).replace(str(staged), str(source))) from None
-    size = (grey.shape[1], grey.shape[0])
-    return Frame(
-        position=position,
-        file="",  # where it will be stored in raw/
-        sha256=sha256,
-        size_px=size,
-        added_utc=utc_now(),
-        source=origin or _text_name(str(source.resolve())),
-        exif=exif_fields(read_exif(staged)),
-    )
+
+
 @contextmanager
 def changing(path: Path, action: str, wait_s: float = EDIT_WAIT_S) -> Iterator[Session]:
     """The session at ``path`` as it is on disk, for a change made under its lock
@@ -213,7 +256,7 @@ def repair_session(path: Path) -> None:
     ``results/comparisons.csv``)."""
     clean_staging(path)
     recover_folder(path, RESULTS_DIR)
-    done = path / RESULTS_DIR / LOG_NAME
+    done = session_comparisons(path)
     if not done.is_file():
         return
     try:
@@ -227,43 +270,6 @@ def repair_session(path: Path) -> None:
         append_rows(log, missing)
         log_event(path, "repair", f"run {missing[0].run_id}: its {len(missing)} rows appended "
                   "to the comparisons log after an interrupted run")
-
-
-def stale_results(session: Session, with_targets: bool = True) -> str | None:
-    """Why ``results/`` no longer shows this session (frames, rig or, ``with_targets``,
-    targets changed since the run that wrote it), or None. Without the targets: whether
-    its depth map is still this session's (the depth does not depend on them)."""
-    meta_path = session.path / RESULTS_DIR / "depth.json"
-    if not meta_path.is_file():
-        return None
-    meta = run_metadata(session.path)
-    if meta is None:  # damaged, a link or a FIFO
-        return "results/depth.json is unreadable; process again"
-    try:
-        recorded = {pos: [f.get("sha256") for f in meta["frames"][pos]] for pos in POSITIONS}
-    except (KeyError, TypeError, AttributeError):
-        return "results/depth.json is unreadable; process again"
-    current = {pos: [f.sha256 for f in session.bursts.get(pos, ())] for pos in POSITIONS}
-    run = meta.get("run_id", "?")
-    if recorded != current:
-        return f"results/ are from run {run}, before the frames changed; process again"
-    rig, used = session.rig().geometry(), meta.get("rig") or {}
-    now = {"focal_px": rig.focal_px, "baseline_lr_m": rig.baseline_lr_m,
-           "baseline_lb_m": rig.baseline_lb_m, "one_camera": rig.one_camera}
-    if any(used.get(key, value) != value for key, value in now.items()):
-        return f"results/ are from run {run}, before the rig changed; process again"
-    if not with_targets:
-        return None
-    done = session.path / RESULTS_DIR / LOG_NAME
-    try:
-        rows = read_rows(done) if done.is_file() else []
-    except InputError:
-        return f"results/{LOG_NAME} is unreadable; process again"
-    compared = {(r.target, r.u, r.v, r.laser_readings) for r in rows}
-    targets = {(t.name, t.pixel[0], t.pixel[1], len(t.readings)) for t in session.targets}
-    if compared != targets:
-        return f"results/ are from run {run}, before the targets changed; process again"
-    return None
 
 
 def session_frames(session: Session) -> dict[str, tuple[FrameFile, ...]]:
@@ -341,92 +347,6 @@ def exif_fields(info: ExifInfo) -> dict[str, Any]:
     return {name: getattr(info, name) for name in keep if getattr(info, name) is not None}
 
 
-def add_target(
-    session: Session,
-    name: str,
-    pixel: tuple[float, float],
-    *,
-    window_px: int = DEFAULT_WINDOW_PX,
-    readings: Sequence[LaserReading] = (),
-    note: str = "",
-) -> Session:
-    """Add a target, or add readings to an existing one of the same name; returns the
-    session as saved.
-
-    The pixel must lie inside the rig's image and the window must be an
-    odd number of pixels. The change is made under the session's lock on the session as
-    it is on disk then (:func:`changing`), so readings added at once all land.
-    """
-    check_name(name, "target name")
-    if window_px < 1 or window_px % 2 == 0:
-        raise InputError(f"--window {window_px}: expected an odd number of pixels (e.g. 9)")
-    longest = max_range_m(session.rig())
-    for reading in readings:
-        if not (math.isfinite(reading.slope_distance_m) and
-                0 < reading.slope_distance_m <= longest):
-            raise InputError(f"range {reading.slope_distance_m:g} m: expected a distance "
-                             f"the rangefinder can measure (0-{longest:g} m)")
-    with changing(session.path, "add-target") as current:
-        return _add_target(current, name, pixel, window_px, readings, note)
-
-
-def _add_target(session: Session, name: str, pixel: tuple[float, float], window_px: int,
-                readings: Sequence[LaserReading], note: str) -> Session:
-    existing = {t.name: t for t in session.targets}
-    if name in existing:
-        old = existing[name]
-        if (tuple(pixel) != old.pixel) or window_px != old.window_px:
-            raise InputError(
-                f"{session.path}: target {name!r} is already at pixel "
-                f"({old.pixel[0]:g}, {old.pixel[1]:g}) window {old.window_px}; "
-                "give its pixel and window to add readings, or choose a new name"
-            )
-        target = replace(old, readings=old.readings + tuple(readings))
-        targets = tuple(target if t.name == name else t for t in session.targets)
-    else:
-        target = Target(name, (float(pixel[0]), float(pixel[1])), window_px, tuple(readings),
-                        note)
-        check_target_inside(session, target)
-        targets = session.targets + (target,)
-    updated = replace(session, targets=targets)
-    save_session(updated)
-    shots = ", ".join(f"{r.slope_distance_m:.2f} m ({r.source})" for r in readings) or "none"
-    log_event(
-        session.path, "add-target",
-        f"{name} pixel ({target.pixel[0]:g}, {target.pixel[1]:g}) window {window_px} "
-        f"readings {shots}",
-    )
-    return updated
-
-
-def remove_reading(session: Session, target_name: str, number: int) -> Session:
-    """Remove reading ``number`` (1-based, as ``session show`` lists them) of the target
-    ``target_name``; returns the session as saved."""
-    with changing(session.path, "remove") as current:
-        target = current.target(target_name)
-        if not 1 <= number <= len(target.readings):
-            raise InputError(f"{current.path}: target {target_name!r} has "
-                             f"{len(target.readings)} reading(s); there is no reading {number}")
-        gone = target.readings[number - 1]
-        kept = target.readings[: number - 1] + target.readings[number:]
-        updated = _with_target(current, replace(target, readings=kept))
-        save_session(updated)
-        log_event(current.path, "remove", f"{target_name} reading {number}: "
-                  f"{gone.slope_distance_m:.2f} m ({gone.source}, {gone.time_utc})")
-    return updated
-
-
-def remove_target(session: Session, target_name: str) -> Session:
-    """Remove the target ``target_name`` with its readings; returns the session."""
-    with changing(session.path, "remove") as current:
-        target = current.target(target_name)
-        updated = replace(current, targets=tuple(t for t in current.targets if t is not target))
-        save_session(updated)
-        log_event(current.path, "remove", f"target {target_name} at ({target.pixel[0]:g}, "
-                  f"{target.pixel[1]:g}) with {len(target.readings)} reading(s)")
-    return updated
-
-
 def remove_frame(session: Session, position: str, number: int | None = None) -> Session:
     """Remove frame ``number`` (1-based; default the newest) of ``position``'s burst from
     the session; its file stays in ``raw/``. Returns the session."""
@@ -443,11 +363,6 @@ def remove_frame(session: Session, position: str, number: int | None = None) -> 
         log_event(current.path, "remove", f"{position} frame {number}: {gone.file} (kept in "
                   f"{RAW_DIR}/)")
     return updated
-
-
-def _with_target(session: Session, target: Target) -> Session:
-    return replace(session, targets=tuple(target if t.name == target.name else t
-                                          for t in session.targets))
 
 
 def check_target_inside(session: Session, target: Target) -> None:

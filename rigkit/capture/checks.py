@@ -6,7 +6,7 @@ profile's tolerance. A different focal length breaks the one-f assumption the de
 scale rests on, so processing stops on it (:func:`capture_warnings`, unless forced);
 everything else is a warning. The image size is not taken from EXIF, which often
 describes a preview: the decoded frame's size is checked against the rig
-(:func:`rigkit.capture.imagesize.check_size`).
+(:func:`rigkit.imagefile.imagesize.check_size`).
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 
-from rigkit.capture.exif import ExifInfo, read_exif
-from rigkit.capture.rawio import frame_size
-from rigkit.capture.session import POSITIONS
+from rigkit.capture.model import POSITIONS
 from rigkit.errors import InputError
+from rigkit.imagefile.exif import ExifInfo, read_exif
+from rigkit.imagefile.rawio import frame_size
 from rigkit.rig.findings import Finding
 from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
 from rigkit.rig.profile import CAMERA_ROLES, CameraSpec, RigProfile
@@ -62,7 +62,7 @@ def check_capture(profile: RigProfile, paths: Sequence[str | Path]) -> list[Find
 
 def size_findings(profile: RigProfile, paths: Sequence[str | Path]) -> list[Finding]:
     """A finding for each of the left, right and back frames whose decoded size
-    (:func:`rigkit.capture.rawio.frame_size`, not an EXIF size) is not the profile's."""
+    (:func:`rigkit.imagefile.rawio.frame_size`, not an EXIF size) is not the profile's."""
     expected = profile.image_size
     found = []
     for role, path in zip(CAMERA_ROLES, paths, strict=True):

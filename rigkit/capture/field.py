@@ -14,7 +14,8 @@ front end gets the same answers:
   pseudo-rectified (a camera only turned then leaves nothing but the matches' noise)
   and the spread of their disparities against that noise. A spread no larger than
   noise means the tripod was not moved or the same view was taken twice; one clear of
-  noise but too small for depth, a scene with little depth in view;
+  noise but under half a pixel, a scene with little depth in view, said but not
+  refused (the back view gives a flat scene's range);
 * after the back frame: its magnification m against the left view, below 1 because the
   back camera is ``C_lb`` behind, and the range it implies, z = m C_lb / (1 - m) (an
   object at depth z from the left camera is at z + C_lb from the back one; the paper's
@@ -36,30 +37,31 @@ from __future__ import annotations
 import math
 import statistics
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from rigkit.capture.actions import add_frame
+from rigkit.capture.actions import file_frame, staged_frame
 from rigkit.capture.checks import UNCHECKED, check_exif
-from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.capture.session import DERIVED_DIR, POSITIONS, Frame, Session
+from rigkit.capture.model import POSITIONS, Frame, Session
 from rigkit.capture.views import (
+    CheckFrame,
     ViewMap,
+    admit,
     check_frame,
     decoded_with_full,
     full_image,
     kept,
     map_views,
-    reduced,
     reference,
     view_map,
 )
-from rigkit.core.files import file_sha256
 from rigkit.core.threads import ViewPool
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import (
     MAX_RIGHT_SCALE_CHANGE,
+    NO_MAGNIFICATION_SIGMAS,
     implied_range_m,
     roles_problem,
 )
@@ -74,7 +76,7 @@ back position's magnification is 1 - C_lb / z, 0.007 at 300 m) is another positi
 MAX_ROLL_DEG = 10.0
 """Largest plausible roll between two positions; more means a camera turned on its side."""
 MAX_BLOWN = 0.01
-"""Largest share of clipped pixels (:data:`rigkit.capture.picture.CLIP_LEVEL`) before the
+"""Largest share of clipped pixels (:data:`rigkit.imagefile.picture.CLIP_LEVEL`) before the
 highlights count as blown and the frame should be taken again."""
 RANGE_FACTOR = 2.0
 """An implied range more than this factor from the profile's nominal range is suspect."""
@@ -101,35 +103,61 @@ class Misfit(str):
         return misfit
 
 
-def burst_misfit(session: Session, position: str, path: Path) -> Misfit | None:
-    """Why the frame at ``path`` does not belong to ``position``'s burst, or None: the
-    frames of a burst show one view, shifted a little by the tripod's sway, while a
-    frame from another position shows the scene with parallax (the right one) or
-    magnified (the back one), and a frame of another scene does not match at all. None
-    too for the first frame of a position, and for a file that cannot be read (adding
-    it says why)."""
+@dataclass(frozen=True)
+class Ingested:
+    """What :func:`ingest` did: ``session`` as saved with the frame (as it was where the
+    frame is held back), and ``held``, why the frame was held back instead (None: it
+    was added)."""
+
+    session: Session
+    held: Misfit | None = None
+
+
+def ingest(session: Session, position: str, path: Path, *, replace_existing: bool = False,
+           burst: bool = False, check_burst: bool = False) -> Ingested:
+    """Add the frame at ``path`` to ``position`` (as one more of its burst with ``burst``,
+    or replacing its frames with ``replace_existing``): staged, hashed and decoded once
+    (:func:`rigkit.capture.actions.staged_frame`), its check image kept for the checks
+    that follow (:func:`rigkit.capture.views.admit`), and, with ``check_burst``, held
+    back rather than added where it is none of the position's burst
+    (:func:`burst_misfit`). RigkitError where the frame is refused."""
+    with staged_frame(session, position, path, replace_existing=replace_existing,
+                      burst=burst) as staged:
+        joins = burst and not replace_existing and bool(frames_at(staged.session, position))
+        checked = admit(staged.sha256, staged.grey, staged.raw, keep_full=joins)
+        misfit = burst_misfit(staged.session, position, path.name, checked) \
+            if check_burst else None
+        if misfit is not None:
+            return Ingested(staged.session, misfit)
+        return Ingested(file_frame(staged))
+
+
+def burst_misfit(session: Session, position: str, name: str, new: CheckFrame
+                 ) -> Misfit | None:
+    """Why the frame called ``name`` (``new``: its check image) does not belong to
+    ``position``'s burst, or None: the frames of a burst show one view, shifted a little
+    by the tripod's sway, while a frame from another position shows the scene with
+    parallax (the right one) or magnified (the back one), and a frame of another scene
+    does not match at all. None too for the first frame of a position."""
     frames = frames_at(session, position)
     if not frames:
         return None
     try:
-        cache = session.path / DERIVED_DIR
-        grey = load_linear_grey(path, cache, file_sha256(path), session.rig().image_size)
-        new = reduced(to_pipeline([grey], linear=is_raw(path), overwrite=True)[0])[0]
         first = check_frame(session, frames[0])
-    except RigkitError:
+    except RigkitError:  # the burst's own first frame is said by its checks
         return None
     try:  # a frame that cannot be matched with the burst's is none of it
-        view = map_views(first.image, new, first.reduction, session.rig().focal_px,
-                         reference(session, frames[0]))
+        view = map_views(first.image, new.image, first.reduction, session.rig().focal_px,
+                         reference(session, frames[0]), axis="z" if position == "back" else "x")
     except RigkitError:
-        return Misfit(f"{path.name} does not match the {position} burst (too little in common "
+        return Misfit(f"{name} does not match the {position} burst (too little in common "
                       "with its first frame): another scene, or a blank or blurred frame?",
                       elsewhere=False)
     moved = view.parallax is not None and view.parallax.moved
     if not moved and abs(view.scale - 1.0) <= MAX_BURST_SCALE_CHANGE:
         return None
     parallax = "" if view.parallax is None else f"parallax {view.parallax.spread_px:.1f} px, "
-    return Misfit(f"{path.name} does not match the {position} burst ({parallax}scale "
+    return Misfit(f"{name} does not match the {position} burst ({parallax}scale "
                   f"{view.scale:.4f}): it looks taken from another position", elsewhere=True)
 
 
@@ -141,7 +169,7 @@ def add_position_frame(session: Session, position: str, path: Path,
     position's newest frame failed its on-site checks."""
     if retake is None:
         retake = newest_failed(session, position)
-    return add_frame(session, position, path, burst=not retake, replace_existing=retake)
+    return ingest(session, position, path, replace_existing=retake, burst=not retake).session
 
 
 def newest_failed(session: Session, position: str) -> bool:
@@ -239,9 +267,10 @@ def right_checks(view: ViewMap, profile: RigProfile | None = None) -> list[Findi
         return [*checks, scale]  # a magnified view's parallax means nothing
     if view.parallax is not None:
         problem = view.parallax.problem()
+        note = view.parallax.little_relief()
         checks.insert(0, Finding("parallax", problem[0], redo=problem[1]) if problem else
-                      Finding("parallax", f"parallax {view.parallax.spread_px:.1f} px across "
-                              "the scene", ok=True))
+                      Finding("parallax", note or f"parallax {view.parallax.spread_px:.1f} px "
+                              "across the scene", ok=True))
     return checks
 
 
@@ -273,9 +302,11 @@ def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
             redo=f"take the back frame from {metres(c_lb)} straight behind the LEFT position",
         ))
         return checks
-    if view.scale >= 1.0:
+    if view.scale >= 1.0 or 1.0 - view.scale <= NO_MAGNIFICATION_SIGMAS * view.scale_sigma:
         checks.append(Finding(
-            "magnification", f"back view {view.scale:.4f}×: not smaller than the left view",
+            "magnification", f"back view {view.scale:.4f}×: not smaller than the left view"
+            + ("" if view.scale >= 1.0 else
+               f" by more than its noise (±{view.scale_sigma:.4f})"),
             redo=f"take the back frame {metres(c_lb)} behind the left position, same zoom",
         ))
         return checks

@@ -5,11 +5,11 @@ field``) reads frames here, so a frame is decoded and judged the same way whiche
 command reads it:
 
 * each file is decoded (RAW through LibRaw, never an embedded preview) and must hold
-  a picture (:func:`rigkit.capture.rawio.load_linear_grey`);
+  a picture (:func:`rigkit.imagefile.rawio.load_linear_grey`);
 * the set must make a capture (:func:`capture_problems`): every position present, no
   file at two positions or twice in a burst, RAW not mixed with ordinary images;
 * every frame must have the size of the others and of the rig, checked on its header
-  before it is decoded (:func:`rigkit.capture.imagesize.check_size`);
+  before it is decoded (:func:`rigkit.imagefile.imagesize.check_size`);
 * a position's burst is aligned and median-stacked, and the heat shimmer between the
   first two frames of the first burst is measured;
 * the three images are brought to one brightness scale.
@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rigkit.capture.imagesize import check_size
-from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.capture.session import POSITIONS
+from rigkit.capture.model import POSITIONS
 from rigkit.core.files import file_sha256
 from rigkit.errors import InputError
+from rigkit.imagefile.imagesize import check_size
+from rigkit.imagefile.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.pipeline.burst import stack_burst
 from rigkit.pipeline.shimmer import Shimmer, burst_shimmer
 
@@ -125,11 +125,13 @@ def load_capture(
     resolution: tuple[int, int] | None = None,
     cache_dir: Path | None = None,
     rig_name: str = "rig profile",
+    size_from: str | None = None,
 ) -> LoadedCapture:
     """Decode, check and stack a capture's frames (module docstring). ``resolution``
     (W, H) is the rig's image size (None: the frames only have to agree); ``cache_dir``
-    keeps decoded RAW frames by content hash. InputError names the first problem, in
-    the order of the positions and their frames.
+    keeps decoded RAW frames by content hash; ``size_from`` says whose size
+    ``resolution`` is in messages ("the left frame a.png is"; default the ``rig_name``'s).
+    InputError names the first problem, in the order of the positions and their frames.
 
     The next position's frames are decoded in worker threads while this one's are
     stacked (a 5-frame burst per position at 16 MP: 5.4 s -> about 3 s on two cores),
@@ -140,7 +142,7 @@ def load_capture(
     if problems:
         raise InputError("; ".join(problems))
     linear = is_raw(bursts["left"][0].path)
-    expected, whose = resolution, f"the {rig_name} is for"
+    expected, whose = resolution, size_from or f"the {rig_name} is for"
     greys, shimmer = [], None
     pool = ThreadPoolExecutor(max_workers=DECODERS, thread_name_prefix="rigkit-decode")
 

@@ -12,7 +12,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from rigkit.capture.session import EDIT_WAIT_S, LOCK_FILE, utc_now
+from rigkit.capture.model import EDIT_WAIT_S, LOCK_FILE
+from rigkit.capture.session import utc_now
 from rigkit.core.safefs import open_regular
 from rigkit.errors import InputError
 

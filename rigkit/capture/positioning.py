@@ -11,13 +11,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from rigkit.capture.lock import session_lock
-from rigkit.capture.session import (
-    FIELD_STEPS,
-    Session,
-    load_session,
-    log_event,
-    save_session,
-)
+from rigkit.capture.model import FIELD_STEPS, Session
+from rigkit.capture.session import load_session, log_event, save_session
 from rigkit.capture.tripod import TripodPosition, check_position
 from rigkit.core.files import file_sha256
 from rigkit.errors import InputError

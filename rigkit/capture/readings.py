@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 
 from rigkit.capture.field import frames_at, view_of
-from rigkit.capture.session import (
+from rigkit.capture.model import (
     HISTORY_FILE,
     LaserReading,
     Session,

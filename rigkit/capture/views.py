@@ -18,12 +18,13 @@ from typing import TypeVar
 import cv2
 import numpy as np
 
-from rigkit.capture.picture import CLIP_LEVEL
-from rigkit.capture.rawio import is_raw, load_linear_grey, to_pipeline
-from rigkit.capture.session import DERIVED_DIR, Frame, Session
+from rigkit.capture.model import DERIVED_DIR, Frame, Session
 from rigkit.core.threads import ViewPool
+from rigkit.imagefile.picture import CLIP_LEVEL
+from rigkit.imagefile.rawio import is_raw, load_linear_grey, to_pipeline
 from rigkit.pipeline.checks import MAX_RIGHT_SCALE_CHANGE, Parallax, measure_parallax
 from rigkit.pipeline.features import Reference, match_to, prepare_left
+from rigkit.pipeline.motion import view_motion
 from rigkit.pipeline.rectify import pseudo_rectify
 from rigkit.pipeline.settings import PipelineSettings
 
@@ -47,9 +48,11 @@ class CheckFrame:
 class ViewMap:
     """How another view maps onto the left one, in full-resolution pixels.
 
-    ``scale`` (other / left image size of the same object) and ``roll_deg`` (the scene
-    appears turned clockwise on screen by this much in the other view, degrees, image y
-    down) are the homography's at the image centre; ``parallax``: the left/right
+    ``scale``: other / left image size of the same object at the matches' mean depth,
+    their depths' parallax taken out (:func:`rigkit.pipeline.motion.view_motion`);
+    ``scale_sigma`` its standard error; ``roll_deg`` (the scene appears turned clockwise
+    on screen by this much in the other view, degrees, image y down) is the
+    homography's at the image centre; ``parallax``: the left/right
     disparities' spread, as processing measures it (:func:`measure_parallax`), where
     asked for and the views are the same size (else None); ``matches`` (sub-pixel
     tracks used); ``reduction``: full-resolution px per check-image px.
@@ -60,11 +63,12 @@ class ViewMap:
     parallax: Parallax | None
     matches: int
     reduction: float
+    scale_sigma: float = 0.0
 
 
 def decoded(session: Session, frame: Frame) -> np.ndarray:
     """A frame decoded: (H, W) float32 grey in [0, 1] of full scale
-    (:func:`rigkit.capture.rawio.load_linear_grey`, RAW through the session's cache)."""
+    (:func:`rigkit.imagefile.rawio.load_linear_grey`, RAW through the session's cache)."""
     return load_linear_grey(session.path / frame.file, session.path / DERIVED_DIR, frame.sha256)
 
 
@@ -103,9 +107,9 @@ _CHECK_FRAMES: dict[str, CheckFrame] = {}
 for all its checks (its own, the later positions' against it, the preview)."""
 _REFERENCES: dict[str, Reference] = {}
 """Left check images prepared for matching (:func:`prepare_left`), by SHA-256."""
-_VIEWS: dict[tuple[str, str, float | None], ViewMap] = {}
-"""View maps (:func:`map_views`) by the left and the other frame's SHA-256 and the focal
-length that asks for the parallax."""
+_VIEWS: dict[tuple[str, str, float, bool], ViewMap] = {}
+"""View maps (:func:`map_views`) by the left and the other frame's SHA-256, the focal
+length and whether the frame is a right one (moved sideways, its parallax asked for)."""
 
 
 def check_frame(session: Session, frame: Frame) -> CheckFrame:
@@ -116,13 +120,40 @@ def check_frame(session: Session, frame: Frame) -> CheckFrame:
 def _decode_for_checks(session: Session, frame: Frame) -> tuple[CheckFrame, np.ndarray]:
     """``frame`` decoded: its :class:`CheckFrame`, and the frame at full resolution as
     :func:`full_image` gives it."""
-    grey = decoded(session, frame)
+    return _for_checks(decoded(session, frame), is_raw(session.path / frame.file))
+
+
+def _for_checks(grey: np.ndarray, linear: bool) -> tuple[CheckFrame, np.ndarray]:
+    """A decoded frame (``grey``: (H, W) float32 in [0, 1], scaled in place; ``linear``:
+    from RAW) as its :class:`CheckFrame` and at full resolution as :func:`full_image`
+    gives it."""
     clipped = np.count_nonzero(grey >= CLIP_LEVEL) / grey.size
-    linear = is_raw(session.path / frame.file)
     full = to_pipeline([grey], linear=linear, overwrite=True)[0]
     image, reduction = reduced(full)
     image.flags.writeable = False
     return CheckFrame(image, reduction, clipped), full
+
+
+_FULL: dict[str, np.ndarray] = {}
+"""The newest frame handed in at ingest at full resolution (:func:`admit`), by SHA-256,
+until its shimmer is measured (:func:`decoded_with_full`): one frame at a time."""
+
+
+def admit(sha256: str, grey: np.ndarray, linear: bool, keep_full: bool) -> CheckFrame:
+    """A frame decoded on its way into the session (:func:`rigkit.capture.actions.
+    staged_frame`; ``grey`` (H, W) float32 in [0, 1], scaled in place; ``linear``: from
+    RAW) made its checks' :class:`CheckFrame`, kept by its SHA-256 for every check that
+    follows: the burst comparison, its own checks, the later positions' against it. With
+    ``keep_full`` (a burst's later frame, whose shimmer is measured at full resolution)
+    the full-resolution frame is kept too, until its checks take it. So a frame that
+    arrives is decoded once."""
+    checked, full = _for_checks(grey, linear)
+    kept(_CHECK_FRAMES, sha256, lambda: checked)
+    with _lock:
+        _FULL.clear()
+        if keep_full:
+            _FULL[sha256] = full
+    return checked
 
 
 def check_image(session: Session, frame: Frame) -> tuple[np.ndarray, float]:
@@ -141,16 +172,18 @@ def reference(session: Session, left: Frame, pool: ViewPool | None = None) -> Re
 
 
 def view_map(session: Session, position: str, left: Frame, frame: Frame) -> ViewMap:
-    """How ``position``'s ``frame`` maps onto the ``left`` frame (:func:`map_views`, with
-    the parallax for a right frame), the first time only."""
-    focal = session.rig().focal_px if position == "right" else None
+    """How ``position``'s ``frame`` maps onto the ``left`` frame (:func:`map_views`: a
+    back frame moved behind, with the parallax for a right frame), the first time only."""
+    focal = session.rig().focal_px
+    right = position == "right"
 
     def compute() -> ViewMap:
         first = check_frame(session, left)
         other = check_frame(session, frame).image
-        return map_views(first.image, other, first.reduction, focal, reference(session, left))
+        return map_views(first.image, other, first.reduction, focal, reference(session, left),
+                         axis="x" if right else "z", parallax=right)
 
-    return kept(_VIEWS, (left.sha256, frame.sha256, focal), compute)
+    return kept(_VIEWS, (left.sha256, frame.sha256, focal, right), compute)
 
 
 def reduced(image: np.ndarray, side_px: int = CHECK_SIDE_PX) -> tuple[np.ndarray, float]:
@@ -171,36 +204,44 @@ images, which only starts the tracking of the corners at the check images' resol
 than at their 1024 px, and 700-1200 features agreeing on the alignment (12 needed)."""
 
 
-def map_views(left: np.ndarray, other: np.ndarray, reduction: float = 1.0,
-              focal_px: float | None = None, ref: Reference | None = None) -> ViewMap:
+def map_views(left: np.ndarray, other: np.ndarray, reduction: float, focal_px: float,
+              ref: Reference | None = None, axis: str = "x", parallax: bool = True
+              ) -> ViewMap:
     """How ``other`` maps onto ``left`` (check images, (h, w) float32, ``reduction``
-    full-resolution px per px): the scale and roll of the best homography at the image
-    centre and, given the full-resolution ``focal_px`` and views of the same size, the
-    left/right parallax as processing measures it (pseudo-rectified, so a camera only
-    turned leaves none). ``ref``: ``left`` prepared for matching with ``MATCH_POINTS``
-    corners, where already done (:func:`rigkit.pipeline.features.prepare_left`).
-    PipelineError if they do not match."""
+    full-resolution px per px, the rig's full-resolution ``focal_px``): the scale of a
+    view that moved along ``axis`` (``"x"`` beside the left one, ``"z"`` behind it) at
+    the matches' mean depth with their depths' parallax taken out, as processing
+    measures it (:func:`rigkit.pipeline.motion.view_motion`: a scene receding up the
+    view shears and stretches an affine or homography map by more than the back view's
+    magnification), the roll of the best homography at the image centre and, where
+    ``parallax`` is asked for and the scale is a right view's, the left/right parallax
+    as processing measures it (pseudo-rectified, so a camera only turned leaves none).
+    ``ref``: ``left`` prepared for matching with ``MATCH_POINTS`` corners, where already
+    done (:func:`rigkit.pipeline.features.prepare_left`). PipelineError if they do not
+    match."""
     ref = ref or prepare_left(left, MATCH_POINTS, CHECK_MATCHING)
     matches = match_to(ref, other, "left/other", CHECK_MATCHING)
     a, b = matches.left.astype(np.float32), matches.other.astype(np.float32)
     similarity, _ = cv2.estimateAffinePartial2D(a, b, method=cv2.LMEDS)
     if similarity is None:
         similarity = matches.affine
-    centre = ((left.shape[1] - 1) / 2.0, (left.shape[0] - 1) / 2.0)
-    local = _local_linear(a, b, centre, similarity[:, :2])
-    scale = float(math.sqrt(abs(np.linalg.det(local))))
-    parallax = None
-    if focal_px is not None and abs(scale - 1.0) <= MAX_RIGHT_SCALE_CHANGE:
+    centre = np.array([(left.shape[1] - 1) / 2.0, (left.shape[0] - 1) / 2.0])
+    local = _local_linear(a, b, (float(centre[0]), float(centre[1])), similarity[:, :2])
+    motion = view_motion(matches, focal_px / reduction, centre, axis)
+    scale = motion.scale
+    measured = None
+    if parallax and abs(scale - 1.0) <= MAX_RIGHT_SCALE_CHANGE:
         size = (left.shape[1], left.shape[0])
         rect = pseudo_rectify(matches, focal_px / reduction, size)
-        parallax = measure_parallax(matches, rect, reduction)
+        measured = measure_parallax(matches, rect, reduction)
     return ViewMap(
         scale=scale,
         roll_deg=float(math.degrees(math.atan2(local[1, 0] - local[0, 1],
                                                local[0, 0] + local[1, 1]))),
-        parallax=parallax,
+        parallax=measured,
         matches=len(a),
         reduction=reduction,
+        scale_sigma=motion.scale_sigma,
     )
 
 
@@ -224,13 +265,15 @@ def _local_linear(a: np.ndarray, b: np.ndarray, point: tuple[float, float],
 
 def decoded_with_full(session: Session, frame: Frame) -> np.ndarray | None:
     """Decodes ``frame`` for its checks (:func:`check_frame`) and gives it at full
-    resolution too (as :func:`full_image`) where this decodes it; None where it was
-    decoded before (the full-resolution frame is not kept): one decoding for both."""
+    resolution too (as :func:`full_image`) where this decodes it or :func:`admit` kept
+    it; None where it was decoded before (the full-resolution frame is not kept): one
+    decoding for both."""
     with _lock:
+        full = _FULL.pop(frame.sha256, None)
         known = frame.sha256 in _CHECK_FRAMES
     if known:
         check_frame(session, frame)
-        return None
+        return full
     checked, full = _decode_for_checks(session, frame)
     kept(_CHECK_FRAMES, frame.sha256, lambda: checked)
     return full

@@ -7,8 +7,11 @@ that runs it and returns the exit code. ``rigkit --help``, ``rigkit COMMAND --he
 a mistyped command build the whole parser, so ``NAME.py`` imports nothing but the
 standard library and this package's argument modules. ``NAME_run.py`` is the code, free
 to import what it needs: ``rigkit.cli`` imports it only when its command runs. A value
-the help shows that lives in a heavy module (a default, a list of choices) is repeated
-in ``NAME.py``, and tests/commands/test_loading.py holds each copy to its original.
+the help shows that the library uses too (a default, a list of choices) lives once, in a
+light module of its layer that both import (``rigkit.rig.defaults``,
+``rigkit.rangefinder.defaults``, ``rigkit.experiments.defaults``,
+``rigkit.export.defaults``); tests/commands/
+test_loading.py holds help to importing nothing else.
 """
 
 from __future__ import annotations

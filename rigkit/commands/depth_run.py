@@ -6,23 +6,29 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:  # annotations only: the command's help must not load the pipeline
-    from rigkit.batch.depthrun import RigAtSize
-    from rigkit.rig.profile import RigProfile
+import numpy as np
 
-POSITIONS = ("left", "right", "back")
+from rigkit.batch.depthrun import DepthRun, run_depth
+from rigkit.capture.frames import frame_files
+from rigkit.capture.model import POSITIONS
+from rigkit.capture.results import RunFiles
+from rigkit.commands import parse_distortion
+from rigkit.core.files import Content, check_not_inputs, check_writable_folder, write_together
+from rigkit.core.progress import Progress
+from rigkit.errors import InputError
+from rigkit.imagefile.rawio import declared_size
+from rigkit.reporting.previews import colorize, depth_range
+from rigkit.rig.camera import DISTORTION_TERMS
+from rigkit.rig.profile import RigProfile, read_rig_data, rig_from_data
 
 
-def rig_source(args: argparse.Namespace) -> RigProfile | RigAtSize:
+def rig_profile(args: argparse.Namespace) -> RigProfile:
     """The rig: --rig's profile with the flags' values in place of its own, or (without
-    --rig) a function giving the profile that the flags describe for the frames' size.
-    The flags go into the profile's data, which is then checked once, as a profile file
-    is (:func:`rigkit.rig.profile.rig_from_data`)."""
-    from rigkit.errors import InputError
-    from rigkit.rig.profile import read_rig_data, rig_from_data
-
+    --rig) the profile the flags describe for the size the left frame's header declares
+    (:func:`flags_profile`). The flags go into the profile's data, which is then checked
+    once, as a profile file is (:func:`rigkit.rig.profile.rig_from_data`)."""
     for flag, unit in (("focal_px", "pixels"), ("baseline_lr", "m"), ("baseline_lb", "m")):
         value = getattr(args, flag)
         if value is not None and not (math.isfinite(value) and value > 0):
@@ -37,27 +43,26 @@ def rig_source(args: argparse.Namespace) -> RigProfile | RigAtSize:
             "missing " + ", ".join("--" + m.replace("_", "-") for m in missing)
             + ": give --rig PROFILE or --focal-px, --baseline-lr and --baseline-lb"
         )
+    return flags_profile(args, declared_size(args.left[0]))
 
-    def at_size(size: tuple[int, int]) -> RigProfile:
-        data = {
-            "version": 1,
-            "name": "command line",
-            "camera": {"model": "as given on the command line", "resolution": list(size),
-                       "focal_length": {"px": args.focal_px, "tolerance_fraction": 0.0}},
-            "baselines": {name: {"value_m": value, "tolerance_m": 0.0} for name, value in
-                          (("C_lr", args.baseline_lr), ("C_lb", args.baseline_lb))},
-        }
-        return rig_from_data(_override(data, args), Path("the command line"))
 
-    return at_size
+def flags_profile(args: argparse.Namespace, size: tuple[int, int]) -> RigProfile:
+    """The profile that --focal-px, --baseline-lr and --baseline-lb (and the lens flags)
+    describe, for frames of ``size`` (W, H) px."""
+    data = {
+        "version": 1,
+        "name": "command line",
+        "camera": {"model": "as given on the command line", "resolution": list(size),
+                   "focal_length": {"px": args.focal_px, "tolerance_fraction": 0.0}},
+        "baselines": {name: {"value_m": value, "tolerance_m": 0.0} for name, value in
+                      (("C_lr", args.baseline_lr), ("C_lb", args.baseline_lb))},
+    }
+    return rig_from_data(_override(data, args), Path("the command line"))
 
 
 def _override(data: Any, args: argparse.Namespace) -> Any:
     """A profile's data with the command line's values in place of its own; where the
     data is not laid out as a profile, left for the check to name what is wrong."""
-    from rigkit.commands import parse_distortion
-    from rigkit.rig.camera import DISTORTION_TERMS
-
     if not isinstance(data, dict):
         return data
     shared, each = data.get("camera"), data.get("cameras")
@@ -90,8 +95,6 @@ def _override(data: Any, args: argparse.Namespace) -> Any:
 
 def _lensfun(text: str) -> dict[str, Any]:
     """``--lensfun CAMERA:FOCAL_MM`` as a profile's ``distortion`` mapping."""
-    from rigkit.errors import InputError
-
     camera, _, focal = text.rpartition(":")
     try:
         return {"lensfun": camera, "focal_mm": float(focal)}
@@ -101,25 +104,24 @@ def _lensfun(text: str) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.batch.depthrun import run_depth
-    from rigkit.capture.frames import frame_files
-    from rigkit.core.files import check_not_inputs, check_writable_folder, write_together
-    from rigkit.core.progress import Progress
-    from rigkit.errors import InputError
-
+    missing = [f"no {pos} frame" for pos in POSITIONS if not getattr(args, pos)]
+    if missing:
+        raise InputError("; ".join(missing))
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
     if args.out.is_dir():
         raise InputError(f"--out {args.out}: a folder; give a file name such as depth.npy")
     check_writable_folder(args.out.parent, f"--out {args.out}")
-    rig = rig_source(args)
+    rig = rig_profile(args)
     bursts = frame_files({pos: getattr(args, pos) for pos in POSITIONS})
     read = [frame.path for frames in bursts.values() for frame in frames]
-    check_not_inputs([args.out.parent / name for name in _output_names(args.out, args.preview)],
+    names = [path.name for path in _output_paths(args.out, args.preview)]
+    check_not_inputs([args.out.parent / name for name in names],
                      read + ([args.rig] if args.rig is not None else []), f"--out {args.out}")
-    task = args.left[0].name if args.left else "depth"  # no left frame: said by the run
+    size_from = None if args.rig is not None else f"the left frame {args.left[0]} is"
+    task = args.left[0].name
     with Progress("depth", [task], quiet=args.quiet) as progress:
-        run = run_depth(bursts, rig, force=args.force,
+        run = run_depth(bursts, rig, force=args.force, size_from=size_from,
                         progress=lambda stage, f: progress.update(task, f, stage))
     write_together(args.out.parent, _outputs(run, args.out, args.preview))
     print(_summary(run, args.out))
@@ -128,33 +130,31 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _output_names(out: Path, preview: bool) -> list[str]:
-    """The files ``rigkit depth --out OUT`` writes beside OUT, in the order of
-    :func:`_outputs`."""
-    names = [out.name, f"{out.stem}.sigma.npy", f"{out.stem}.json", f"{out.stem}.grey.png",
-             f"{out.stem}.flags.npy"]
-    return names + ([f"{out.stem}.png", f"{out.stem}.sigma.png"] if preview else [])
+def _previews(out: Path) -> tuple[Path, Path]:
+    """``--preview``'s files beside OUT: the colour-mapped depth and sigma."""
+    return out.with_suffix(".png"), out.with_suffix(".sigma.png")
 
 
-def _outputs(run: Any, out: Path, preview: bool) -> dict[str, Any]:
-    import json
+def _output_paths(out: Path, preview: bool) -> list[Path]:
+    """Every file ``rigkit depth --out OUT`` writes."""
+    files = RunFiles.beside(out)
+    made = [files.depth, files.sigma, files.record, files.grey, files.flags]
+    return made + (list(_previews(out)) if preview else [])
 
-    from rigkit.reporting.previews import colorize, depth_range
 
-    result = run.result
-    contents: list[Any] = [result.depth, result.sigma, json.dumps(run.metadata(), indent=2),
-                           run.left_grey(), result.flags()]
+def _outputs(run: DepthRun, out: Path, preview: bool) -> dict[str, Content]:
+    contents = run.outputs(RunFiles.beside(out), run.record())
     if preview:
+        result = run.result
         lo, hi = depth_range(result.depth)
-        contents += [colorize(result.depth, lo, hi, "depth z (m)"),
-                     colorize(100 * result.sigma / result.depth, 0.0, 2.0,
-                              "1-sigma error (% of depth)")]
-    return dict(zip(_output_names(out, preview), contents, strict=True))
+        depth_png, sigma_png = _previews(out)
+        contents[depth_png.name] = colorize(result.depth, lo, hi, "depth z (m)")
+        contents[sigma_png.name] = colorize(100 * result.sigma / result.depth, 0.0, 2.0,
+                                            "1-sigma error (% of depth)")
+    return contents
 
 
-def _summary(run: Any, out: Path) -> str:
-    import numpy as np
-
+def _summary(run: DepthRun, out: Path) -> str:
     result = run.result
     a, lens = result.ambiguity, result.lens_fit
     fitted = ""

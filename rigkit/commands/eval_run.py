@@ -4,18 +4,18 @@ from __future__ import annotations
 
 import argparse
 
+from rigkit.core.files import check_not_inputs
+from rigkit.errors import InputError
+from rigkit.synth.evaluate import (
+    evaluate_scenes,
+    files_read,
+    format_table,
+    goal_line,
+    write_csv,
+)
+
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.core.files import check_not_inputs
-    from rigkit.errors import InputError
-    from rigkit.synth.evaluate import (
-        evaluate_scenes,
-        files_read,
-        format_table,
-        goal_line,
-        write_csv,
-    )
-
     if args.csv:
         if args.csv.suffix.lower() != ".csv":
             raise InputError(f"--csv {args.csv}: expected a .csv file name")

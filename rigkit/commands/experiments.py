@@ -11,10 +11,7 @@ import argparse
 from pathlib import Path
 
 from rigkit.commands import finite
-
-# rigkit.experiments.table1.METHODS, repeated here so that --help does not import the
-# experiments (tests/commands/test_loading.py holds the copy to the original).
-METHODS = ("rigkit", "paper", "loop-zhang", "sfm-mvs")
+from rigkit.experiments.defaults import METHODS
 
 _EPILOG = """\
 examples:

@@ -7,14 +7,15 @@ import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+
+from rigkit.batch import auto_jobs, new_run_id, run_batch
+from rigkit.batch.pool import BatchReport
+from rigkit.batch.session import Outcome
+from rigkit.core.progress import Progress
+from rigkit.errors import InputError
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.batch import new_run_id
-    from rigkit.core.progress import Progress
-    from rigkit.errors import InputError
-
     # One session named twice (a link to it, ./s and s/) is processed once: twice in
     # one run, the second would find it locked by the first and say it failed.
     named: dict[str, Path] = {}
@@ -32,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
         def update(path: Path, stage: str, fraction: float) -> None:
             progress.update(names[path], fraction, stage)
 
-        def finished(outcome: Any) -> None:
+        def finished(outcome: Outcome) -> None:
             progress.done(names[outcome.path])
             for line in _outcome_lines(outcome):
                 progress.print(line)
@@ -46,28 +47,30 @@ def run(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _runner(args: argparse.Namespace, paths: list[Path]) -> tuple[str, Callable[..., Any]]:
+Runs = Callable[[str, BatchReport, Callable[[Outcome], None]], list[Outcome]]
+"""A way to run the sessions: ``(run_id, update, finished) -> outcomes``."""
+
+
+def _runner(args: argparse.Namespace, paths: list[Path]) -> tuple[str, Runs]:
     """Where the sessions will run, in words, and the call ``(run_id, update, finished)
     -> outcomes`` that runs them: local worker processes, or a Dask cluster's workers
     (reached, with a worker, before anything starts)."""
-    from rigkit.batch import auto_jobs, run_batch
-    from rigkit.errors import InputError
-
     if args.scheduler is None:
         jobs = args.jobs or auto_jobs(paths)
-        return f"{jobs} at a time", lambda run_id, update, finished: run_batch(
-            paths, jobs, run_id=run_id, force=args.force, progress=update, on_done=finished)
+        return f"{jobs} at a time", lambda run_id, update, finished: list(run_batch(
+            paths, jobs, run_id=run_id, force=args.force, progress=update, on_done=finished))
     if args.jobs is not None:
         raise InputError("--jobs applies to local processes; with --scheduler the cluster's "
                          "workers decide how many sessions run at once")
-    from rigkit.batch.cluster import connect, run_on_cluster
+    from rigkit.batch.cluster import connect, run_on_cluster  # imports Dask: only here
 
     client = connect(args.scheduler)
 
-    def on_cluster(run_id: str, update: Any, finished: Any) -> Any:
+    def on_cluster(run_id: str, update: BatchReport, finished: Callable[[Outcome], None]
+                   ) -> list[Outcome]:
         with client:
-            return run_on_cluster(paths, client, run_id=run_id, force=args.force,
-                                  on_done=finished)
+            return list(run_on_cluster(paths, client, run_id=run_id, force=args.force,
+                                       on_done=finished))
 
     workers = len(client.scheduler_info()["workers"])
     return f"on the {workers} worker(s) of {args.scheduler}", on_cluster
@@ -80,13 +83,13 @@ def _task_names(paths: list[Path]) -> dict[Path, str]:
     return {path: path.name if names.count(path.name) == 1 else str(path) for path in paths}
 
 
-def _reason(outcome: Any) -> str:
+def _reason(outcome: Outcome) -> str:
     """The failure message, naming the session once."""
     prefix = f"{outcome.path}: "
     return outcome.message if outcome.message.startswith(prefix) else prefix + outcome.message
 
 
-def _outcome_lines(outcome: Any) -> list[str]:
+def _outcome_lines(outcome: Outcome) -> list[str]:
     """What a finished session reports: ok or FAILED, warnings, one line per target."""
     if outcome.ok:
         lines = [f"    ok {outcome.path} ({outcome.seconds:.1f} s): {outcome.message}"]
@@ -104,4 +107,6 @@ def _outcome_lines(outcome: Any) -> list[str]:
     lines.append(f"       verdict: {outcome.verdict.headline}")
     if outcome.verdict.scale:
         lines.append(f"       scale: {outcome.verdict.scale}")
+    if outcome.verdict.source:
+        lines.append(f"       rig scale {outcome.verdict.source}")
     return lines

@@ -6,36 +6,7 @@ import argparse
 import math
 
 from rigkit.commands import count
-
-# What --help shows of rigkit.rangefinder, repeated here so that building the parser
-# does not import pyserial and the drivers (tests/commands/test_loading.py holds the
-# copies to the originals): the protocols (PROTOCOLS) with their default baud rates,
-# the driver's DEFAULT_TIMEOUT_S and the simulator's options (rigkit.rangefinder.sim).
-DEFAULT_BAUDS = {"trupulse": 4800, "vectronix": 115200}
-DEFAULT_TIMEOUT_S = 30.0
-SIM_OPTIONS: dict[str, str] = {
-    "distance": "true slope distance to the target in metres (default 302)",
-    "lat": "gps: latitude in degrees, north positive (default 46.5)",
-    "lon": "gps: longitude in degrees, east positive (default 7.5)",
-    "height": "gps: height above mean sea level in metres (default 500)",
-    "inclination": "trupulse: inclination in degrees, positive up (default 1.2)",
-    "azimuth": "trupulse: azimuth in degrees (default 47.3)",
-    "unit": "trupulse: unit the device sends, M, F or Y (default M)",
-    "interval": "trupulse: seconds between the simulated user's shots, 0 = only on $GO; "
-    "gps: seconds between fixes (default 1)",
-    "noise": "1-sigma range noise in metres; gps: 1-sigma horizontal position noise, m "
-    "(default 0)",
-    "low_quality": "trupulse: probability a shot is flagged low-quality (default 0)",
-    "miss": "probability a shot finds no target (default 0)",
-    "other": "trupulse, gps: probability of another sentence before a shot or fix "
-    "(default 0)",
-    "nofix": "gps: GGA sentences without a fix before the first fix (default 0)",
-    "garbage": "probability of line noise and a cut-off sentence before a frame (default 0)",
-    "bad_checksum": "probability a frame is sent with a wrong checksum (default 0)",
-    "silent": "1 = the device never sends anything (default 0)",
-    "disconnect_after": "pull the cable halfway through frame N+1 (default: never)",
-    "seed": "random seed (default 0)",
-}
+from rigkit.rangefinder.defaults import DEFAULT_BAUDS, DEFAULT_TIMEOUT_S, SIM_OPTIONS
 
 READ_EXAMPLE = """\
 examples:

@@ -6,14 +6,19 @@ import argparse
 import sys
 from pathlib import Path
 
+from rigkit.capture.comparisons import csv_text
+from rigkit.capture.session import check_outside
+from rigkit.core.files import write_together
+from rigkit.errors import InputError
+from rigkit.reporting.plots import FORMATS, plot_error_vs_range, plot_estimate_vs_laser, render
+from rigkit.reporting.scale import calibration_rows, session_scale_note
+from rigkit.reporting.summary import collect, format_text, summarize
+
 #: The plots, by file stem; each is written in every --format.
 PLOTS = ("estimate_vs_laser", "error_vs_range")
 
 
 def _formats(text: str) -> list[str]:
-    from rigkit.errors import InputError
-    from rigkit.reporting.plots import FORMATS
-
     formats = list(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
     unknown = [f for f in formats if f not in FORMATS]
     if unknown or not formats:
@@ -22,12 +27,6 @@ def _formats(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.capture.comparisons import csv_text
-    from rigkit.errors import InputError
-    from rigkit.reporting.plots import plot_error_vs_range, plot_estimate_vs_laser, render
-    from rigkit.reporting.scale import session_scale_note
-    from rigkit.reporting.summary import collect, format_text, summarize
-
     if not args.sessions:
         raise InputError("no session folders given (e.g. rigkit report capture/field-1 --out DIR)")
     formats = _formats(args.format)
@@ -40,7 +39,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"no comparisons in {', '.join(map(str, args.sessions))} (an empty "
                          "log, or every row damaged): nothing to report; rigkit process a "
                          "session with laser targets first")
-    text = format_text(rows, summarize(rows))
+    calibrated = calibration_rows(args.sessions)
+    counted = [r for r in rows if (r.session, r.target) not in calibrated]
+    text = format_text(rows, summarize(counted), calibrated)
     notes = [(path, session_scale_note(path)) for path in dict.fromkeys(args.sessions)]
     text += "".join(f"scale of {path}: {note}\n" for path, note in notes if note)
     files: dict[str, str | bytes] = {"comparisons.csv": csv_text(rows), "report.txt": text}
@@ -57,9 +58,6 @@ def run(args: argparse.Namespace) -> int:
 def _check_out(out: Path, sessions: list[Path]) -> None:
     """--out must be a folder (or not exist yet) and never inside a session: its
     comparisons.csv would replace the session's log."""
-    from rigkit.capture.session import check_outside
-    from rigkit.errors import InputError
-
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
     check_outside(out / "comparisons.csv", sessions, f"--out {out}")
@@ -68,9 +66,6 @@ def _check_out(out: Path, sessions: list[Path]) -> None:
 def _write_all(out: Path, files: dict[str, str | bytes]) -> None:
     """All report files at once (:func:`rigkit.core.files.write_together`); a folder that
     cannot be created or written is a one-line error naming --out."""
-    from rigkit.core.files import write_together
-    from rigkit.errors import InputError
-
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -6,13 +6,15 @@ import argparse
 from pathlib import Path
 
 from rigkit.commands import count, finite
+from rigkit.rig.defaults import (
+    CRITICAL_W,
+    DISPARITY_ERROR_PX,
+    LASER_ACCURACY_M,
+    MAX_RANGE_M,
+    SHIMMER_PX,
+)
 
 DEFAULT_RANGE_M = 300.0
-# The budget's defaults, repeated here so that --help does not import the pipeline they
-# come from: rigkit.rig.budget.DISPARITY_ERROR_PX (the pipeline's stereo_noise_px) and
-# rigkit.rig.bursts.SHIMMER_PX (tests/commands/test_loading.py holds them equal).
-DISPARITY_ERROR_PX = 0.25
-SHIMMER_PX = 0.3
 
 _RIG_EPILOG = """\
 example:
@@ -112,17 +114,24 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     _register_calibrate(sub)
 
 
-_CALIBRATE_EPILOG = """\
+_CALIBRATE_EPILOG = f"""\
 examples:
   rigkit rig calibrate capture/ridge-0412 --out rigs/ridge-0412.yaml   # taped anew
   rigkit rig calibrate capture/van-* --out rigs/van-2026.yaml          # one fixed rig
+  rigkit rig calibrate capture/van-1 --check-session capture/van-2 --out rigs/van.yaml
+  rigkit rig calibrate capture/ridge-0412 --hold-out T5 --out rigs/ridge.yaml
 
-Fits C_lb (the depth maps' scale), and f*C_lr where the targets span enough depth, from
-the sessions' latest laser comparisons (process them first), each weighted by its laser
-accuracy and depth sigma; a target far off the others' fit is named and left out, and
-targets that disagree beyond their sigma stop it. Each target is checked by the fit
-made without it. Then: rigkit session set-rig SESSION --rig OUT; rigkit process SESSION.
-exit status: 0 written, 2 refused (nothing written). docs/rig-profiles.md, "Calibrating".
+Adjusts C_lb (the depth maps' scale), and f*C_lr where the targets determine it better
+than the profile does, from each session's current run (process them first): every
+target a row weighted by its laser accuracy and its window median's measured scatter,
+the profile's tolerances rows too (the tape's, the lens spec's). A blunder (standardised
+residual beyond {CRITICAL_W:g}) is named and left out; one that cannot be told from another row,
+or a profile value beyond its tolerance, stops it (--beyond-tolerance lets the lasers
+overrule the profile). Each target is checked by the fit without it and its twins;
+held-out targets and check sessions only check it. Then: rigkit session set-rig SESSION
+--rig OUT; rigkit process SESSION.
+exit status: 0 written, 1 nothing better than the tape to write, 2 refused (nothing
+written). docs/rig-profiles.md, "Calibrating the scale from the laser".
 """
 
 
@@ -131,7 +140,8 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
         "calibrate",
         help="fit the rig's scale (C_lb, f*C_lr) from sessions' laser targets",
         description="Write a rig profile whose C_lb (and f*C_lr, where the targets see it)\n"
-                    "the sessions' laser targets fit, with the tolerances the fit leaves.",
+                    "the sessions' laser targets fit, with the tolerances the fit leaves,\n"
+                    "and a report of the adjustment like an instrument's calibration.",
         epilog=_CALIBRATE_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -139,7 +149,18 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                            help="processed session folders of one rig")
     calibrate.add_argument("--out", type=Path, required=True, help="the profile to write")
     calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
-                           help="one laser reading's one-sigma error, m (default 0.3)")
+                           help="one laser reading's one-sigma error, m (default "
+                                f"{LASER_ACCURACY_M:g})")
+    calibrate.add_argument("--hold-out", action="append", default=[], metavar="TARGET",
+                           help="a target (T3, or SESSION/T3) kept out of the fit and checked "
+                                "against it (repeatable)")
+    calibrate.add_argument("--check-session", action="append", default=[], type=Path,
+                           metavar="SESSION",
+                           help="a processed session of the same rig whose targets only "
+                                "check the fit (repeatable)")
+    calibrate.add_argument("--beyond-tolerance", action="store_true",
+                           help="let the lasers overrule a profile value they find beyond "
+                                "its tolerance (the tape was wrong) instead of refusing")
     calibrate.add_argument("--force", action="store_true", help="overwrite --out")
     calibrate.set_defaults(runner="rigkit.commands.rig_run:run_calibrate")
 
@@ -160,10 +181,6 @@ def _non_negative_float(text: str) -> float:
 
 def _float(text: str) -> float:
     return finite(text)
-
-
-MAX_RANGE_M = 100_000.0
-"""The longest range ``--range`` takes (as a profile's ``nominal_range_m``)."""
 
 
 def _range_m(text: str) -> float:

@@ -16,31 +16,42 @@ from rigkit.rig.findings import Finding
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    """``rigkit rig calibrate``: 0 when the profile is written."""
+    """``rigkit rig calibrate``: 0 when the profile is written, 1 where the lasers know
+    nothing better than the tape (nothing written)."""
     from rigkit.capture.session import check_outside
-    from rigkit.core.files import check_writable_folder, write_text
+    from rigkit.core.files import check_creatable, write_text
     from rigkit.errors import InputError
-    from rigkit.reporting.scale import LASER_ACCURACY_M, format_calibration, sessions_targets
-    from rigkit.rig.calibration import calibrated_profile, fit_scale
+    from rigkit.reporting.calibration_report import calibration_record, format_calibration
+    from rigkit.reporting.scale import plain, read_sessions
+    from rigkit.rig.calibrated import calibrated_profile
+    from rigkit.rig.calibration import fit_scale
+    from rigkit.rig.defaults import LASER_ACCURACY_M
     from rigkit.rig.profile import dump_rig
 
-    if args.out.suffix.lower() not in (".yaml", ".yml"):
-        raise InputError(f"--out {args.out}: expected a .yaml file name for the profile")
-    check_outside(args.out, args.sessions, f"--out {args.out}")
-    if args.out.exists() and not args.force:
-        raise InputError(f"{args.out}: exists; give --force to overwrite it")
-    check_writable_folder(args.out.parent, f"--out {args.out}")
-    accuracy = args.laser_sigma_m or LASER_ACCURACY_M
-    profile, targets = sessions_targets(args.sessions, accuracy)
-    fit = fit_scale(targets, profile)
-    print(format_calibration(fit, profile, len(args.sessions)), end="")
-    note = (f"Calibrated by rigkit rig calibrate from {len(fit.used)} laser target(s) in "
-            f"{', '.join(str(s) for s in args.sessions)}: C_lb "
-            f"{profile.baseline_lb.value_m:.4f} -> {profile.baseline_lb.value_m * fit.scale:.4f}"
-            f" m" + ("" if fit.checked else " (unchecked: fewer than 3 targets)") + ".")
-    write_text(args.out, dump_rig(calibrated_profile(profile, fit, note)))
-    print(f"wrote {args.out}; use it: rigkit session set-rig SESSION --rig {args.out}, "
-          "then rigkit process SESSION")
+    out = args.out
+    what = f"--out {plain(str(out))}"
+    if out.suffix.lower() not in (".yaml", ".yml"):
+        raise InputError(f"{what}: expected a .yaml file name for the profile")
+    check_outside(out, [*args.sessions, *args.check_session], what)
+    check_creatable(out, what)
+    if out.exists() and not args.force:
+        raise InputError(f"{plain(str(out))}: exists; give --force to overwrite it")
+    given = read_sessions(args.sessions, args.check_session, args.hold_out,
+                          args.laser_sigma_m or LASER_ACCURACY_M)
+    fit = fit_scale(given.targets, given.profile, held_out=given.held_out,
+                    overrule=args.beyond_tolerance)
+    written = calibrated_profile(given.profile, fit, calibration_record(fit, given))
+    print(format_calibration(fit, given, written.changes, written.kept), end="")
+    if not written.changes:
+        print("nothing written: the lasers know the scale no better than the profile does")
+        return 1
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_text(out, dump_rig(written.profile))
+    except OSError as exc:
+        raise InputError(f"{what}: cannot write the profile ({exc.strerror})") from None
+    print(f"wrote {plain(str(out))} ({plain(written.profile.name)}); use it: rigkit session "
+          f"set-rig SESSION --rig {plain(str(out))}, then rigkit process SESSION")
     return 0
 
 

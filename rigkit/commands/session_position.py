@@ -10,12 +10,16 @@ from rigkit.commands import count, finite
 
 EXAMPLE = """examples:
   rigkit session set-position capture/ridge-0412 --lat 46.55123 --lon 7.98456 --height-m 1012
+  rigkit session set-position capture/ridge-0412 --lat 46.55123 --lon 7.98456 \
+      --height-m 1012.4 --height-datum EPSG:5728           # a height in LN02 (Swiss heights)
   rigkit session set-position capture/ridge-0412 --gps /dev/ttyACM0 --fixes 10
   rigkit session set-position capture/ridge-0412 --gps 'sim://gps?lat=46.55&lon=7.98&noise=3'
 
 Record it at the left position (the targets are marked in the left image). With
 2 or more targets whose laser readings carry azimuth and inclination, `rigkit export`
-then places the points on the map (docs/outputs.md).
+then places the points on the map (docs/outputs.md). A GPS's height is above its own
+mean sea level, and its geoid separation is kept with it; say what a typed height is
+measured from with --height-datum, so that the exported files can say what Z is.
 """
 
 
@@ -28,6 +32,10 @@ def register_set_position(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--lon", type=finite, help="longitude, degrees (east positive)")
     p.add_argument("--height-m", type=finite, help="height, metres (above mean sea level, "
                    "as a GPS shows it)")
+    p.add_argument("--height-datum", metavar="ellipsoidal|EPSG:CODE",
+                   help="what the typed height is measured from: ellipsoidal (WGS 84) or "
+                   "a vertical CRS (e.g. EPSG:5728 LN02, EPSG:3855 EGM2008); default: not "
+                   "stated, and the export says so")
     p.add_argument("--gps", metavar="URL", help="read NMEA GGA sentences from a GPS receiver "
                    "on a serial port or pyserial URL (sim://gps?... simulates one)")
     p.add_argument("--fixes", type=count, default=5, help="GPS fixes to average (default 5)")

@@ -6,12 +6,29 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
+from dataclasses import asdict
+
+from rigkit.capture import POSITIONS, frame_problems, load_session, session_to_data, utc_now
+from rigkit.capture.actions import changing, create_session, remove_frame
+from rigkit.capture.checks import check_capture
+from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
+from rigkit.capture.field import ingest
+from rigkit.capture.lock import lock_holder
+from rigkit.capture.model import LaserReading, Session, stray_readings
+from rigkit.capture.readings import reading_from_device
+from rigkit.capture.results import session_record, stale_results
+from rigkit.capture.targets import add_target, remove_reading, remove_target
+from rigkit.capture.tripod import check_direction
+from rigkit.core.tables import visible
+from rigkit.errors import InputError, RigkitError, environment_message
+from rigkit.rangefinder import open_rangefinder
+from rigkit.rangefinder.protocols import default_protocol
+from rigkit.rangefinder.ranging import parse_typed_range
+from rigkit.reporting.scale import calibration_targets, scale_source
+from rigkit.reporting.verdict import CALIBRATED_LABEL, row_label
 
 
 def run_new(args: argparse.Namespace) -> int:
-    from rigkit.capture import create_session
-
     session = create_session(args.session, args.rig, operator=args.operator, notes=args.notes)
     print(f"created session {session.path} (rig {session.rig().name}); next: add the left, "
           "right and back frames with `rigkit session add-frame`")
@@ -19,19 +36,12 @@ def run_new(args: argparse.Namespace) -> int:
 
 
 def run_add_frame(args: argparse.Namespace) -> int:
-    from rigkit.capture import add_frame, load_session
-    from rigkit.capture.actions import check_frame_file
-    from rigkit.capture.field import burst_misfit
-    from rigkit.errors import InputError
-
-    session = load_session(args.session)
-    if args.burst:  # a frame of another view or scene is none of the burst (as in the TUI)
-        check_frame_file(session, args.position, args.file)  # what is refused at a glance
-        misfit = burst_misfit(session, args.position, args.file)
-        if misfit is not None:
-            raise InputError(f"{misfit}; add it at the position it shows")
-    session = add_frame(session, args.position, args.file,
-                        replace_existing=args.replace, burst=args.burst)
+    # A frame of another view or scene is none of the burst (as in the TUI).
+    done = ingest(load_session(args.session), args.position, args.file,
+                  replace_existing=args.replace, burst=args.burst, check_burst=args.burst)
+    if done.held is not None:
+        raise InputError(f"{done.held}; add it at the position it shows")
+    session = done.session
     burst = session.bursts[args.position]
     frame = burst[-1]
     width, height = frame.size_px
@@ -46,9 +56,7 @@ def run_add_frame(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_exif_findings(session: Any) -> None:
-    from rigkit.capture.checks import check_capture
-
+def _print_exif_findings(session: Session) -> None:
     paths = [session.frame_path(p) for p in ("left", "right", "back")]
     findings = check_capture(session.rig(), paths)
     for finding in findings:
@@ -58,9 +66,6 @@ def _print_exif_findings(session: Any) -> None:
 
 
 def run_add_target(args: argparse.Namespace) -> int:
-    from rigkit.capture import add_target, load_session
-    from rigkit.errors import InputError
-
     session = load_session(args.session)
     name = args.name or _next_name(session)
     stopped = None
@@ -79,7 +84,7 @@ def run_add_target(args: argparse.Namespace) -> int:
     return 0
 
 
-def _next_name(session: Any) -> str:
+def _next_name(session: Session) -> str:
     taken = {t.name for t in session.targets}
     n = 1
     while f"T{n}" in taken:
@@ -87,26 +92,18 @@ def _next_name(session: Any) -> str:
     return f"T{n}"
 
 
-def _typed_readings(session: Any, ranges: list[str], inclination: float | None,
-                    azimuth: float | None = None) -> list[Any]:
-    from rigkit.capture import LaserReading, utc_now
-    from rigkit.capture.tripod import check_direction
-    from rigkit.rangefinder.ranging import parse_typed_range
-
+def _typed_readings(session: Session, ranges: list[str], inclination: float | None,
+                    azimuth: float | None = None) -> list[LaserReading]:
     check_direction(azimuth, inclination)
     return [LaserReading(parse_typed_range(r, session.rig()), utc_now(), "manual", inclination,
                          azimuth_deg=azimuth)
             for r in ranges]
 
 
-def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any], str | None]:
+def _device_readings(session: Session, args: argparse.Namespace
+                     ) -> tuple[list[LaserReading], str | None]:
     """The readings of ``--shots`` shots from the device, and why it stopped early (None
     when it did not): readings received before a lost device are kept, not thrown away."""
-    from rigkit.capture.readings import reading_from_device
-    from rigkit.errors import InputError, RigkitError, environment_message
-    from rigkit.rangefinder import open_rangefinder
-    from rigkit.rangefinder.protocols import default_protocol
-
     spec = session.rig().rangefinder
     url = args.device
     if url == "rig":
@@ -118,7 +115,7 @@ def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any],
                                  else default_protocol(url))
     if args.shots < 1:
         raise InputError(f"--shots {args.shots}: expected at least 1")
-    readings: list[Any] = []
+    readings: list[LaserReading] = []
     baud = spec.baud if spec is not None and url == spec.port else None
     try:
         with open_rangefinder(url, protocol, baud=baud, timeout=args.timeout) as device:
@@ -136,9 +133,6 @@ def _device_readings(session: Any, args: argparse.Namespace) -> tuple[list[Any],
 
 
 def run_remove_reading(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_reading
-
     session = remove_reading(load_session(args.session), args.target, args.reading)
     left = ", ".join(f"{r.slope_distance_m:.2f}" for r in session.target(args.target).readings)
     print(f"removed reading {args.reading} of {args.target}; left: [{left or 'none'}] m")
@@ -146,18 +140,12 @@ def run_remove_reading(args: argparse.Namespace) -> int:
 
 
 def run_remove_target(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_target
-
     remove_target(load_session(args.session), args.target)
     print(f"removed target {args.target}")
     return 0
 
 
 def run_remove_frame(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import remove_frame
-
     session = remove_frame(load_session(args.session), args.position, args.frame)
     left = len(session.bursts.get(args.position, ()))
     print(f"removed a {args.position} frame ({left} left; its file stays in raw/)")
@@ -165,11 +153,6 @@ def run_remove_frame(args: argparse.Namespace) -> int:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from rigkit.capture import load_session
-    from rigkit.capture.actions import changing
-    from rigkit.core.tables import visible
-    from rigkit.errors import InputError
-
     try:  # repair what an interrupted command left, where the session can be changed
         with changing(args.session, "show", wait_s=0.0) as session:
             pass
@@ -183,33 +166,26 @@ def run_show(args: argparse.Namespace) -> int:
     return 0
 
 
-def _processed(session: Any, stale: str | None) -> str:
+def _processed(session: Session, stale: str | None) -> str:
     """"processed (run ...)" where the results show the session as it is, else "ready
     to process" (what makes them stale is said below it)."""
-    from rigkit.capture.session import run_metadata
-
-    run = (run_metadata(session.path) or {}).get("run_id") if stale is None else None
+    record = session_record(session.path) if stale is None else None
+    run = record.run_id if record is not None else None
     if run is None:
         return "ready to process"
     return f"processed (run {run}); rigkit process again to redo it"
 
 
-def _show_data(session: Any) -> dict[str, Any]:
-    from dataclasses import asdict
-
-    from rigkit.capture import frame_problems, session_to_data
-
+def _show_data(session: Session) -> dict[str, object]:
     data = session_to_data(session)
     data["problems"] = frame_problems(session)
     data["last_run"] = [asdict(row) for row in _last_rows(session)]
+    data["scale"] = scale_source(session.rig())
+    data["calibration_targets"] = sorted(calibration_targets(session.rig(), session))
     return data
 
 
-def _last_rows(session: Any) -> list[Any]:
-    import sys
-
-    from rigkit.capture.comparisons import LOG_NAME, latest_run, read_rows
-
+def _last_rows(session: Session) -> list[Comparison]:
     log = session.path / LOG_NAME
     torn: list[str] = []
     rows = latest_run(read_rows(log, torn)) if log.is_file() else []
@@ -218,12 +194,7 @@ def _last_rows(session: Any) -> list[Any]:
     return rows
 
 
-def _show_text(session: Any) -> str:
-    from rigkit.capture import POSITIONS, frame_problems
-    from rigkit.capture.actions import stale_results
-    from rigkit.capture.lock import lock_holder
-    from rigkit.capture.session import stray_readings
-
+def _show_text(session: Session) -> str:
     lines = [f"session {session.name}  ({session.path})", f"  created {session.created_utc}"]
     if session.operator:
         lines.append(f"  operator {session.operator}")
@@ -232,10 +203,13 @@ def _show_text(session: Any) -> str:
     rig = session.rig()
     lines.append(f"  rig      {rig.name} (from {session.rig_reference}): f {rig.focal_px:.1f} "
                  f"px, C_lr {rig.baseline_lr.value_m:g} m, C_lb {rig.baseline_lb.value_m:g} m")
+    lines.append(f"  scale    {scale_source(rig)}")
     if session.tripod is not None:
         t = session.tripod
+        geoid = ("" if t.geoid_separation_m is None
+                 else f", geoid {t.geoid_separation_m:.2f} m above the ellipsoid")
         lines.append(f"  tripod   {t.lat_deg:.7f}, {t.lon_deg:.7f}, {t.height_m:.2f} m "
-                     f"({t.source})")
+                     f"({t.source}; height {t.height_datum}{geoid})")
     lines.append("frames")
     for position in POSITIONS:
         burst = session.bursts.get(position, ())
@@ -260,13 +234,13 @@ def _show_text(session: Any) -> str:
     lines.append("status   " + ("; ".join(problems) if problems else _processed(session, stale)))
     for note in filter(None, (lock_holder(session.path), stale)):
         lines.append(f"         {note}")
-    from rigkit.reporting.verdict import row_label
-
     rows = _last_rows(session)
+    used = calibration_targets(rig, session)
     if rows:
         lines.append(f"last run {rows[0].run_id}")
         for row in rows:
+            mark = f" ({CALIBRATED_LABEL})" if row.target in used else ""
             lines.append(f"  {row.target:<8} laser {row.laser_range_m:9.2f} m  estimate "
                          f"{row.estimate_range_m:9.2f} m  error {row.error_pct:+6.2f} %  "
-                         f"{row_label(row)}")
+                         f"{row_label(row)}{mark}")
     return "\n".join(lines)

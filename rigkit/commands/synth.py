@@ -12,16 +12,19 @@ EXAMPLE = """example:
   rigkit synth out/small --seed 1 --width 1152 --height 864
   rigkit synth out/vehicle --seed 3 --rig rigs/vehicle-2m.yaml   # size, f, baselines from a rig
   rigkit synth capture/synth-5 --seed 5 --width 1152 --height 864 --session --targets 6
+  rigkit synth capture/synth-6 --seed 6 --width 1152 --height 864 --session \
+      --position 46.55123,7.98456,1012,49.6 --pointing 47.3,-50   # on the map
   rigkit synth out/field-9 --seed 9 --field                 # sky, haze, shimmer, exposure...
   rigkit synth out/field-9b --seed 9 --field --burst 5 --distortion 0.47
   rigkit synth out/town-4 --seed 4 --movers 8 --shadows 2 --facades 2   # what moves, hard walls
   rigkit synth out/air-9 --seed 9 --field --shimmer-spectrum vonkarman --shimmer-outer 1500
+  rigkit synth out/valley-2 --seed 2 --backdrop ground --depth-ratio 2 --sky 0.3
 
 flags given explicitly override the rig profile; without --rig the defaults are the paper's.
 """
 # rigkit.synth.shimmer.SPECTRA, named here so that --help does not import the renderer
 SHIMMER_SPECTRA = ("gaussian", "fine", "vonkarman")
-BACKDROPS = ("terrain", "void")  # rigkit.synth.scene.BACKDROPS, without importing numpy
+BACKDROPS = ("terrain", "void", "ground")  # rigkit.synth.scene.BACKDROPS, without numpy
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -91,12 +94,24 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="building facades: periodic windows and plain walls, alternately")
     world.add_argument("--backdrop", choices=BACKDROPS,
                        help="terrain (default): ground and sky behind the objects; void: "
-                       "no ground, an exactly black background")
+                       "no ground, an exactly black background; ground: the cameras look "
+                       "down on ground receding up the view, objects standing on it")
+    world.add_argument("--depth-ratio", type=finite, metavar="R",
+                       help="--backdrop ground: the ground's far range over its near one "
+                       "in view (default 1.6; 2 is a valley from 200 to 400 m)")
     p.add_argument("--session", action="store_true",
                    help="write a capture session (raw/, session.yaml, rig.yaml) with "
                    "simulated laser targets, ready for `rigkit process`")
     p.add_argument("--targets", type=int, default=5, help="laser targets in a --session")
     p.add_argument("--laser-noise", type=finite, default=0.05,
                    help="simulated laser noise sigma, m (--session)")
+    p.add_argument("--position", metavar="LAT,LON,HEIGHT[,GEOID]",
+                   help="put the --session on the map: the tripod at LAT, LON (WGS 84 "
+                   "degrees) and HEIGHT m above the ellipsoid, or with GEOID, above mean "
+                   "sea level as a GPS gives it (the geoid GEOID m above the ellipsoid); "
+                   "the laser's azimuth and inclination to each target from the truth")
+    p.add_argument("--pointing", metavar="AZIMUTH,ELEVATION[,ROLL]", default="0,0",
+                   help="with --position: where the left camera looks, degrees from true "
+                   "north, above the horizontal, and its roll (right side down); default 0,0")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(runner="rigkit.commands.synth_run:run")

@@ -3,16 +3,24 @@
 from __future__ import annotations
 
 import argparse
+import math
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rigkit.capture.tripod import GEOID_RANGE_M, check_direction, check_position
+from rigkit.commands import parse_distortion
+from rigkit.core.progress import Progress
+from rigkit.errors import InputError
+from rigkit.rig import load_rig
+from rigkit.synth import SynthParams, field_params, generate_scene, write_scene
+from rigkit.synth.io import VIEWS
+from rigkit.synth.placement import Placement
+from rigkit.synth.scene import Scene
+
 
 def _rig_settings(path: Path) -> dict[str, float]:
-    import math
-
-    from rigkit.rig import load_rig
-
     rig = load_rig(path)
     w, h = rig.image_size
     side, up = rig.back_offset_m or (0.0, 0.0)
@@ -28,10 +36,6 @@ def _rig_settings(path: Path) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigkit.core.progress import Progress
-    from rigkit.synth import SynthParams, generate_scene
-    from rigkit.synth.io import VIEWS
-
     d = SynthParams()
     settings: dict[str, float] = {
         "width": d.width,
@@ -90,19 +94,15 @@ _CONDITION_FLAGS = {
     "shadow_drift": "shadow_drift_m",
     "facades": "n_facades",
     "backdrop": "backdrop",
+    "depth_ratio": "depth_ratio",
 }
 
 
-def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
+def _field_conditions(args: argparse.Namespace, params: SynthParams) -> SynthParams:
     """``params`` with --field's preset and the field and world flags given applied."""
-    from dataclasses import replace
-
-    from rigkit.commands import parse_distortion
-    from rigkit.synth import field_params
-
     if args.field:
         params = field_params(params)
-    changes: dict[str, Any] = {
+    changes: dict[str, Any] = {  # flags of several types, checked by SynthParams
         name: getattr(args, flag) for flag, name in _CONDITION_FLAGS.items()
         if getattr(args, flag) is not None
     }
@@ -111,15 +111,40 @@ def _field_conditions(args: argparse.Namespace, params: Any) -> Any:
     return replace(params, **changes)
 
 
+def _placement(args: argparse.Namespace) -> Placement | None:
+    """--position and --pointing as a placement on the map (None without --position);
+    InputError naming the option whose numbers are not."""
+    if args.position is None:
+        return None
+    position = _numbers(args.position, "--position", (3, 4))
+    pointing = _numbers(args.pointing, "--pointing", (2, 3))
+    check_position(*position[:3])
+    if len(position) == 4 and not GEOID_RANGE_M[0] <= position[3] <= GEOID_RANGE_M[1]:
+        raise InputError(f"--position geoid {position[3]:g}: expected {GEOID_RANGE_M[0]:g} "
+                         f"to {GEOID_RANGE_M[1]:g} m")
+    check_direction(pointing[0] % 360.0, pointing[1])
+    return Placement(position[0], position[1], position[2], azimuth_deg=pointing[0] % 360.0,
+                     elevation_deg=pointing[1], roll_deg=pointing[2] if len(pointing) == 3 else 0.0,
+                     geoid_separation_m=position[3] if len(position) == 4 else None)
+
+
+def _numbers(text: str, option: str, counts: tuple[int, ...]) -> list[float]:
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in counts or not all(math.isfinite(v) for v in values):
+        raise InputError(f"{option} {text!r}: expected {' or '.join(map(str, counts))} "
+                         "comma-separated numbers")
+    return values
+
+
 MAX_TARGETS = 1000
 """The most laser targets a synthetic session gets (each is a line of session.yaml)."""
 
 
-def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
+def _write(args: argparse.Namespace, scene: Scene, progress: Progress) -> str:
     """Render ``scene`` as a scene folder or a session; what was written, in words."""
-    from rigkit.errors import InputError
-    from rigkit.synth import write_scene
-
     if args.session:
         from rigkit.synth.session import write_synthetic_session
 
@@ -128,10 +153,14 @@ def _write(args: argparse.Namespace, scene: Any, progress: Any) -> str:
                              "not be negative")
         session = write_synthetic_session(
             scene, args.out_dir, n_targets=args.targets, laser_sigma_m=args.laser_noise,
-            seed=args.seed, progress=progress,
+            seed=args.seed, progress=progress, placement=_placement(args),
         )
         what = f"session with {len(session.targets)} targets"
+        if session.tripod is not None:
+            what += f", on the map at {session.tripod.lat_deg:g}, {session.tripod.lon_deg:g}"
     else:
+        if args.position is not None:
+            raise InputError("--position places a --session on the map: add --session")
         write_scene(scene, args.out_dir, progress)
         what = "scene"
     return what

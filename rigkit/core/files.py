@@ -95,6 +95,25 @@ def check_writable_folder(folder: Path, what: str) -> None:
         raise InputError(f"{what}: cannot write in {folder} (permission denied or read-only)")
 
 
+def check_creatable(path: Path, what: str) -> None:
+    """InputError naming ``what`` where the file ``path`` could not be written there:
+    something other than a file by that name (a folder, a FIFO, a device), or no folder
+    it could be made in (the nearest existing one on its way is a file, or cannot be
+    written). Creates nothing, so a command refused afterwards leaves no folder behind;
+    its folders are made when it writes."""
+    path = Path(path)
+    if os.path.lexists(path) and not path.is_symlink() and not path.is_file():
+        kind = "a folder" if path.is_dir() else "not a regular file"
+        raise InputError(f"{what}: {path} is {kind}; name a file to write")
+    folder = path.parent
+    while not os.path.lexists(folder) and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise InputError(f"{what}: {folder} is a file, not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{what}: cannot write in {folder} (permission denied or read-only)")
+
+
 def replaced_entry(path: Path) -> str:
     """The folder entry that writing ``path`` replaces: its folder with every link
     resolved, and its own name as it is (a write renames a new file over that name, so

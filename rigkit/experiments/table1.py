@@ -23,17 +23,17 @@ import numpy as np
 from rigkit.core.files import write_bytes, write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
+from rigkit.experiments.defaults import METHODS
 from rigkit.experiments.loop_zhang import loop_zhang_depth
 from rigkit.experiments.paper import paper_depth
 from rigkit.experiments.sfm import sfm_mvs_depth
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.features import Matches, match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.evaluate import Metrics, depth_metrics, failed_metrics, visible_in_right
 from rigkit.synth.io import SceneTruth
 
-METHODS = ("rigkit", "paper", "loop-zhang", "sfm-mvs")
 VIEWS = ("left", "right", "back")
 #: The paper's Table 1 (40 scenes at 4608x3456): failures and % under 1/2/3 %.
 PAPER_TABLE1 = {

@@ -1,7 +1,8 @@
-"""Exporting depth maps for other tools: point clouds (PLY; LAS and LAZ for GIS) and a
-float32 TIFF raster, in the left camera's frame or georeferenced in the tripod's UTM
-zone from the tripod's position and the laser's directions to the targets
-(docs/outputs.md).
+"""Exporting depth maps for other tools: point clouds (PLY; LAS and LAZ for GIS), a
+float32 TIFF raster in the image's grid and a map raster (a DSM as a Cloud-Optimized
+GeoTIFF), in the left camera's frame or georeferenced (the tripod's UTM zone or any
+projected CRS, heights with their datum) from the tripod's position and the laser's
+directions to the targets, each export with a metadata file (docs/outputs.md).
 
 Its public names are imported on first use (:mod:`rigkit.core.lazy`).
 """
@@ -13,12 +14,19 @@ from typing import TYPE_CHECKING
 from rigkit.core.lazy import exports
 
 if TYPE_CHECKING:
-    from rigkit.export.georef import Georeference, Orientation, georeference, orient_camera
+    from rigkit.export.georef import (
+        Georeference,
+        NotOnMap,
+        Orientation,
+        georeference,
+        orient_camera,
+    )
     from rigkit.export.run import (
         DEFAULT_FORMATS,
         EXPORT_DIR,
         FORMATS,
         Exported,
+        MapRequest,
         export_depth,
         export_path,
         parse_formats,
@@ -32,6 +40,8 @@ __all__ = [
     "DepthMap",
     "Exported",
     "Georeference",
+    "MapRequest",
+    "NotOnMap",
     "Orientation",
     "export_depth",
     "export_path",
@@ -48,6 +58,8 @@ __getattr__ = exports(__name__, {
     "Exported": "run",
     "FORMATS": "run",
     "Georeference": "georef",
+    "MapRequest": "run",
+    "NotOnMap": "georef",
     "Orientation": "georef",
     "export_depth": "run",
     "export_path": "run",

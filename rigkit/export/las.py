@@ -3,9 +3,13 @@
 Point format 7: X, Y, Z as 32-bit integers times a scale plus an offset (chosen so the
 whole map fits at millimetre steps where it can), intensity and red, green, blue from
 the left image's grey value (x 257, so 255 is 65535), and an extra-bytes dimension
-``sigma`` (float32, metres: the depth's one standard error). A georeferenced file
-carries its CRS as an OGC WKT VLR (LAS 1.4's WKT bit set), which QGIS, PDAL and
-CloudCompare read, so they place it without asking.
+``sigma`` (float32, metres: the depth's one standard error). A point whose depth the
+pipeline filled from a neighbour rather than matched has its synthetic bit set (the
+classification flag readers filter on: PDAL's ``Synthetic``, LAStools' ``-drop_synthetic``).
+A georeferenced file carries its CRS (horizontal and vertical, a compound CRS) in a WKT
+VLR, as OGC 01-009 WKT (WKT1), which the LAS 1.4 specification (R15) cites, with the
+global encoding's WKT bit set; QGIS, PDAL and CloudCompare read it and place the cloud
+without asking.
 """
 
 from __future__ import annotations
@@ -13,7 +17,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 from types import TracebackType
-from typing import Any
 
 import laspy
 import numpy as np
@@ -37,11 +40,12 @@ def las_scale(extent_m: float) -> float:
                      "(a depth map of that reach is no estimate of rigkit's); export PLY")
 
 
-def las_header(offset: tuple[float, float, float], extent_m: float, crs: Any | None,
+def las_header(offset: tuple[float, float, float], extent_m: float, wkt: str | None,
                description: str) -> laspy.LasHeader:
     """A LAS 1.4 point format 7 header with the ``sigma`` extra dimension. ``offset``:
     a point near the data (the tripod, or the camera's origin), metres; ``extent_m``: how
-    far from it the farthest point may be; ``crs``: a pyproj CRS or None (a local frame)."""
+    far from it the farthest point may be; ``wkt``: the CRS as WKT1, or None (a local
+    frame)."""
     header = laspy.LasHeader(point_format=POINT_FORMAT, version="1.4")
     header.add_extra_dim(laspy.ExtraBytesParams(
         name="sigma", type=np.float32, description="1-sigma depth error, m"))
@@ -53,8 +57,9 @@ def las_header(offset: tuple[float, float, float], extent_m: float, crs: Any | N
     header.scales = np.full(3, las_scale(extent_m))
     header.system_identifier = description[:32]
     header.generating_software = f"rigkit {__version__}"[:32]
-    if crs is not None:
-        header.add_crs(crs)
+    if wkt is not None:  # laspy's add_crs writes WKT2; LAS 1.4 cites WKT1
+        header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(wkt))
+        header.global_encoding.wkt = True
     return header
 
 
@@ -77,6 +82,8 @@ class LasWriter:
         one = np.ones(len(chunk.grey), np.uint8)  # one return per pixel: LAS 1.4 wants >= 1
         points.return_number = one
         points.number_of_returns = one
+        if chunk.filled is not None:
+            points.synthetic = chunk.filled
         self._writer.write_points(points)
 
     def close(self) -> None:

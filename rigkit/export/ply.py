@@ -8,6 +8,8 @@ its count and its properties, then the vertices as packed binary records. rigkit
     red, green, blue uchar, the left image's grey value (so viewers colour the points)
     sigma            float, the depth's one standard error, metres (a scalar field in
                      CloudCompare)
+    filled           uchar, 1 where the pipeline filled the depth from a neighbour rather
+                     than matched it, else 0 (left out where the results do not say)
 
 and says in ``comment`` lines which frame or CRS the coordinates are in. MeshLab,
 CloudCompare, Open3D and Blender read it.
@@ -23,11 +25,13 @@ import numpy as np
 from rigkit.export.points import PointChunk
 
 
-def vertex_dtype(double: bool) -> np.dtype:
-    """One vertex record: coordinates float64 (``double``) or float32, grey as RGB, sigma."""
+def vertex_dtype(double: bool, filled: bool = True) -> np.dtype:
+    """One vertex record: coordinates float64 (``double``) or float32, grey as RGB,
+    sigma, and (``filled``) whether the depth was filled."""
     coordinate = "<f8" if double else "<f4"
     return np.dtype([("x", coordinate), ("y", coordinate), ("z", coordinate),
-                     ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("sigma", "<f4")])
+                     ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("sigma", "<f4"),
+                     *([("filled", "u1")] if filled else [])])
 
 
 _PLY_TYPES = {"<f8": "double", "<f4": "float", "|u1": "uchar"}
@@ -47,9 +51,10 @@ class PlyWriter:
     """Streams ``count`` vertices to ``handle`` (opened for binary writing); the count
     must be known first (PLY's header holds it), and :meth:`close` checks it was met."""
 
-    def __init__(self, handle: BinaryIO, count: int, *, double: bool, comments: list[str]):
+    def __init__(self, handle: BinaryIO, count: int, *, double: bool, comments: list[str],
+                 filled: bool = True):
         self._handle = handle
-        self._dtype = vertex_dtype(double)
+        self._dtype = vertex_dtype(double, filled)
         self._left = count
         handle.write(ply_header(count, self._dtype, comments))
 
@@ -60,6 +65,8 @@ class PlyWriter:
         for name in ("red", "green", "blue"):
             records[name] = chunk.grey
         records["sigma"] = chunk.sigma
+        if "filled" in (self._dtype.names or ()):
+            records["filled"] = chunk.filled
         self._handle.write(records.tobytes())
         self._left -= len(records)
 

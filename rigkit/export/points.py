@@ -2,10 +2,10 @@
 
 Camera frame (the left camera's, OpenCV's): x right, y down, z forward along the optical
 axis, metres, origin at the optical centre. Pixel (u, v): u along columns, v along rows,
-pixel centres at integers. A pixel at depth z lies at
-((u - cx) / f * z, (v - cy) / f * z, z): the pinhole model the laser comparison uses
-(:mod:`rigkit.rangefinder.ranging`; the lens distortion, 0.2 % at the corner of the
-bundled example, moves a point sideways by that share of its distance from the axis).
+pixel centres at integers. A pixel at depth z lies at z times its ray, back-projected
+through the run's lens (:meth:`rigkit.pipeline.lens.Lens.rays`: the recorded pixel
+undistorted, then the ideal pinhole), as the laser comparison and the orientation fit
+take it: the depth map lies on the recorded, distorted pixel grid.
 """
 
 from __future__ import annotations
@@ -30,20 +30,20 @@ Transform = Callable[[np.ndarray], np.ndarray]
 class PointChunk:
     """Consecutive points of the map in row-major order. ``xyz``: (n, 3) float64, the
     output frame's coordinates (metres); ``grey``: (n,) uint8, the left image's value;
-    ``sigma``: (n,) float32, the depth's one standard error, metres; ``done``: the
-    fraction of the map's rows covered so far."""
+    ``sigma``: (n,) float32, the depth's one standard error, metres; ``filled``: (n,)
+    bool, the pipeline filled the point's depth from a neighbour (None: not known);
+    ``ray_length``: (n,) float32, the length of the point's ray per metre of depth
+    (>= 1: a depth error d moves the point d x ray_length along its line of sight);
+    ``keep``: (h, w) bool, which of the chunk's grid points (its every ``step``-th row
+    and column) these are; ``done``: the fraction of the map's rows covered so far."""
 
     xyz: np.ndarray
     grey: np.ndarray
     sigma: np.ndarray
+    filled: np.ndarray | None
+    ray_length: np.ndarray
+    keep: np.ndarray
     done: float
-
-
-def camera_rays(u: np.ndarray, v: np.ndarray, f: float, cx: float, cy: float) -> np.ndarray:
-    """Rays of pixels (u, v) (equal shapes, px) with unit z: (..., 3) float64 in the
-    camera frame; a point at depth z is ``z * ray``."""
-    u, v = np.broadcast_arrays(np.asarray(u, np.float64), np.asarray(v, np.float64))
-    return np.stack([(u - cx) / f, (v - cy) / f, np.ones_like(u)], axis=-1)
 
 
 def row_blocks(shape: tuple[int, int], step: int) -> Iterator[slice]:
@@ -73,15 +73,23 @@ def point_chunks(source: DepthMap, step: int, transform: Transform | None = None
     chunks of about :data:`CHUNK_POINTS` grid points; ``transform`` maps camera-frame
     points to the output frame (None: the camera frame)."""
     height, width = source.depth.shape
-    cols = np.arange(0, width, step)
+    cols = slice(None, None, step)
     for rows in row_blocks((height, width), step):
-        z = np.asarray(source.depth[rows, ::step], np.float64)
+        z = np.asarray(source.depth[rows, cols], np.float64)
         keep = estimated(z)
-        vv, uu = np.meshgrid(np.arange(height)[rows], cols, indexing="ij")
-        xyz = camera_rays(uu[keep], vv[keep], source.f, source.cx, source.cy) * z[keep, None]
+        x, y = source.lens.ray_rows(rows.start, rows.stop)
+        shape = (rows.stop - rows.start, width)
+        x = np.broadcast_to(x, shape)[::step, cols][keep]
+        y = np.broadcast_to(y, shape)[::step, cols][keep]
+        depth = z[keep]
+        xyz = np.column_stack([x * depth, y * depth, depth])
+        filled = source.filled(rows, cols)
         yield PointChunk(
             xyz=transform(xyz) if transform is not None else xyz,
-            grey=np.asarray(source.grey[rows, ::step])[keep],
-            sigma=np.asarray(source.sigma[rows, ::step], np.float32)[keep],
+            grey=np.asarray(source.grey[rows, cols])[keep],
+            sigma=np.asarray(source.sigma[rows, cols], np.float32)[keep],
+            filled=None if filled is None else filled[keep],
+            ray_length=np.sqrt(x * x + y * y + 1.0).astype(np.float32),
+            keep=keep,
             done=rows.stop / height,
         )

@@ -1,25 +1,30 @@
-"""What an export reads: a depth map, its sigma, the left image's grey values and the
-left camera's intrinsics, from a processed session or from ``rigkit depth``'s files.
+"""What an export reads: a depth map, its sigma, the left image's grey values, what each
+pixel's depth rests on, and the run that made it (its lens above all,
+:mod:`rigkit.export.runinfo`), from a processed session or from ``rigkit depth``'s files.
 
-A session's ``results/`` holds ``depth.npy``, ``sigma.npy``, ``grey.png`` and
-``depth.json``; ``rigkit depth --out D.npy`` writes ``D.npy``, ``D.sigma.npy``,
-``D.grey.png`` and ``D.json``. The maps are memory-mapped, not read whole.
+A session's ``results/`` holds ``depth.npy``, ``sigma.npy``, ``grey.png``, ``flags.npy``
+and ``depth.json``; ``rigkit depth --out D.npy`` writes ``D.npy``, ``D.sigma.npy``,
+``D.grey.png``, ``D.flags.npy`` and ``D.json``. The maps are memory-mapped, not read
+whole. Results from before rigkit wrote the flags export without them (no point is then
+marked as filled, and the metadata says that it is not known).
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 
-from rigkit.capture.actions import stale_results
-from rigkit.capture.session import RESULTS_DIR, Session, is_session, load_session
+from rigkit.capture.model import Session
+from rigkit.capture.results import RunFiles, RunRecord, read_record, stale_results
+from rigkit.capture.session import is_session, load_session
 from rigkit.core.safefs import check_regular, real_folder
 from rigkit.errors import InputError
+from rigkit.export.runinfo import RunInfo
+from rigkit.pipeline.estimate import FLAG_FILLED
+from rigkit.pipeline.lens import Lens
 
 
 @dataclass(frozen=True)
@@ -28,29 +33,45 @@ class DepthMap:
 
     ``depth``: (H, W) float32, metres, z along the left camera's optical axis, NaN = no
     estimate; ``sigma``: (H, W) float32, metres, its one standard error; ``grey``: (H, W)
-    uint8, the left image the depth map lies on. ``f``, ``cx``, ``cy``: the left camera's
-    pinhole intrinsics in px, pixel centres at integers
-    (:meth:`rigkit.rig.profile.RigProfile.intrinsics`, as the pipeline and the laser
-    comparison take them). ``name`` names the exported files; ``rig`` the rig profile; ``run_id``
-    the processing run (None for ``rigkit depth``'s files); ``session`` the session the
-    map belongs to, if any (its tripod position and targets georeference it).
+    uint8, the left image the depth map lies on. ``flags``: (H, W) uint8, what each
+    pixel's depth rests on (``rigkit.pipeline.estimate.FLAG_*`` bits), None for results
+    from before rigkit wrote them. ``run``: the run that made it, with the lens every
+    pixel is back-projected through. ``name`` names the exported files; ``session`` the
+    session the map belongs to, if any (its tripod position and targets georeference it).
     """
 
     depth: np.ndarray
     sigma: np.ndarray
     grey: np.ndarray
-    f: float
-    cx: float
-    cy: float
     name: str
-    rig: str
-    run_id: str | None = None
+    run: RunInfo
+    flags: np.ndarray | None = None
     session: Session | None = None
 
     @property
     def size(self) -> tuple[int, int]:
         """(width, height) in px."""
         return self.depth.shape[1], self.depth.shape[0]
+
+    @property
+    def lens(self) -> Lens:
+        """The left view's lens, through which pixels are back-projected."""
+        return self.run.lens
+
+    @property
+    def rig(self) -> str:
+        return self.run.rig
+
+    @property
+    def run_id(self) -> str | None:
+        return self.run.run_id
+
+    def filled(self, rows: slice, cols: slice) -> np.ndarray | None:
+        """Which pixels of ``[rows, cols]`` the pipeline filled from a neighbour rather
+        than matched, (h, w) bool; None when the results do not say."""
+        if self.flags is None:
+            return None
+        return (np.asarray(self.flags[rows, cols]) & FLAG_FILLED) != 0
 
 
 def open_depth(path: Path) -> DepthMap:
@@ -67,69 +88,67 @@ def open_depth(path: Path) -> DepthMap:
 
 def session_depth(path: Path) -> DepthMap:
     """The latest ``rigkit process`` results of the session at ``path``. Read without
-    the session's lock (results are swapped in whole); the run id is read before and
-    after, so a run swapped in meanwhile is noticed rather than mixed."""
+    the session's lock (results are swapped in whole); the run's record is read before
+    and after, so a run swapped in meanwhile is noticed rather than mixed. The depth map
+    is back-projected through the lens the run used (its record's)."""
     if not is_session(path):
         raise InputError(f"{path}: not a session folder (no session.yaml)")
     session = load_session(path)
-    results = path / RESULTS_DIR
-    if not (results / "depth.npy").is_file():
+    files = RunFiles.of_session(path)
+    if not files.depth.is_file():
         raise InputError(f"{path}: no results yet; run `rigkit process {path}` first")
-    real_folder(results)  # the session's own: no link leads the export elsewhere
-    for name in ("depth.npy", "sigma.npy", "grey.png", "depth.json"):
-        check_regular(results / name)
+    real_folder(files.depth.parent)  # the session's own: no link leads the export elsewhere
+    for name in (files.depth, files.sigma, files.grey, files.record):
+        check_regular(name)
+    if files.flags.exists():
+        check_regular(files.flags)
     stale = stale_results(session, with_targets=False)  # a depth map of other frames or rig
     if stale is not None:
         raise InputError(f"{path}: {stale} (rigkit process {path}) before exporting")
-    run_id = _meta(results / "depth.json").get("run_id")
-    arrays = _maps(results / "depth.npy", results / "sigma.npy", results / "grey.png",
-                   f"rigkit process {path}")
-    if _meta(results / "depth.json").get("run_id") != run_id:
+    record = read_record(files.record)
+    depth_map = _depth_map(files, record, f"rigkit process {path}", session.name, session)
+    if read_record(files.record).run_id != record.run_id:
         raise InputError(f"{path}: results were replaced while being read (a run just "
                          "finished); export again")
-    rig = session.rig()
-    camera = rig.intrinsics((arrays[0].shape[1], arrays[0].shape[0]))
-    return DepthMap(*arrays, f=camera.focal_px, cx=camera.cx_px, cy=camera.cy_px,
-                    name=session.name, rig=rig.name,
-                    run_id=run_id, session=session)
+    return depth_map
 
 
 def file_depth(path: Path) -> DepthMap:
-    """``rigkit depth``'s ``D.npy`` with ``D.sigma.npy``, ``D.grey.png`` and ``D.json``
-    beside it. The intrinsics are ``D.json``'s ``left_camera_px``; a ``D.json`` written
-    before rigkit recorded them gives its focal length and the image centre."""
-    stem = path.with_suffix("")
-    meta = _meta(stem.with_suffix(".json"))
-    arrays = _maps(path, Path(f"{stem}.sigma.npy"), Path(f"{stem}.grey.png"),
-                   "rigkit depth ... --out " + str(path))
+    """``rigkit depth``'s ``D.npy`` with ``D.sigma.npy``, ``D.grey.png``, ``D.flags.npy``
+    and ``D.json`` beside it; the run (and its lens) from ``D.json``, its record."""
+    files = RunFiles.beside(path)
+    record = read_record(files.record)
+    return _depth_map(files, record, f"rigkit depth ... --out {path}",
+                      path.with_suffix("").name)
+
+
+def _depth_map(files: RunFiles, record: RunRecord, remake: str, name: str,
+               session: Session | None = None) -> DepthMap:
+    """The run's maps with its record's lens (:class:`rigkit.export.runinfo.RunInfo`);
+    InputError where the maps are not of the size the record says the run made."""
+    arrays = _maps(files, remake)
     height, width = arrays[0].shape
-    try:
-        camera = meta.get("left_camera_px") or {
-            "f": meta["rig"]["focal_px"], "cx": (width - 1) / 2, "cy": (height - 1) / 2}
-        f, cx, cy = (float(camera[k]) for k in ("f", "cx", "cy"))
-        rig = str(meta["rig"]["name"])
-    except (KeyError, TypeError, ValueError):
-        raise InputError(f"{stem}.json: no rig focal length (not written by rigkit depth?)"
-                         ) from None
-    return DepthMap(*arrays, f=f, cx=cx, cy=cy, name=stem.name, rig=rig)
+    if (width, height) != record.image_size_px:
+        raise InputError(f"{files.depth}: the depth map is {width}x{height} px, its record "
+                         f"says {record.image_size_px[0]}x{record.image_size_px[1]} px")
+    flags = _flags(files.flags, arrays[0].shape)
+    return DepthMap(*arrays, name=name, run=RunInfo.of(record), flags=flags, session=session)
 
 
-def _meta(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: missing (written with the depth map)") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read ({exc})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: not a depth map's metadata")
-    return data
+def _flags(path: Path, shape: tuple[int, ...]) -> np.ndarray | None:
+    """The pipeline's flags (memory-mapped), None where the results have none."""
+    if not path.exists():
+        return None
+    flags = _npy(path, np.uint8, "uint8 flags")
+    if flags.shape != shape:
+        raise InputError(f"{path}: {flags.shape}, the depth map is {shape}")
+    return flags
 
 
-def _maps(depth_path: Path, sigma_path: Path, grey_path: Path,
-          remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _maps(files: RunFiles, remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Depth and sigma memory-mapped, grey read; all (H, W) and of one size."""
-    depth, sigma = (_npy(p) for p in (depth_path, sigma_path))
+    depth_path, grey_path = files.depth, files.grey
+    depth, sigma = (_npy(p) for p in (files.depth, files.sigma))
     if not grey_path.is_file():
         raise InputError(f"{grey_path}: missing (written since rigkit records the grey "
                          f"values for export); run `{remake}` again")
@@ -143,13 +162,13 @@ def _maps(depth_path: Path, sigma_path: Path, grey_path: Path,
     return depth, sigma, grey
 
 
-def _npy(path: Path) -> np.ndarray:
+def _npy(path: Path, dtype: type = np.float32, what: str = "float32 metres") -> np.ndarray:
     try:
         array = np.load(path, mmap_mode="r")
     except FileNotFoundError:
         raise InputError(f"{path}: missing") from None
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: not a NumPy array file ({exc})") from None
-    if array.dtype != np.float32:
-        raise InputError(f"{path}: {array.dtype} values, expected float32 metres")
+    if array.dtype != dtype:
+        raise InputError(f"{path}: {array.dtype} values, expected {what}")
     return array

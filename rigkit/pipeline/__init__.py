@@ -1,7 +1,7 @@
 """The depth pipeline: pseudo-rectification, stereo, ambiguity removal, depth.
 
 Its public names are imported on first use (:mod:`rigkit.core.lazy`): reading a frame
-(:mod:`rigkit.pipeline.images`) does not load every stage and SciPy with them.
+(:mod:`rigkit.imagefile.decode`) does not load every stage and SciPy with them.
 """
 
 from __future__ import annotations

@@ -44,9 +44,9 @@ import numpy as np
 from rigkit.core.lazy import function
 from rigkit.errors import PipelineError
 from rigkit.geometry import rotvec_to_matrix
-from rigkit.pipeline.checks import affine_scale, check_magnification
-from rigkit.pipeline.depth import rectified_rays, triangulate_z
+from rigkit.pipeline.depth import rectified_rays
 from rigkit.pipeline.features import Matches
+from rigkit.pipeline.motion import BackStart, back_view_start, spatial_blocks, view_motion
 from rigkit.pipeline.rectify import Rectification, apply_homography, plane_slopes, scaling
 from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
@@ -112,14 +112,19 @@ def _sample_disparity(
     return xr, d / scale
 
 
-def _points(rect: Rectification, xr: np.ndarray, d: np.ndarray, beta: float, c_lr: float):
-    """Left-frame 3D points (N, 3) of rectified positions ``xr`` with disparities ``d``."""
-    z = triangulate_z(rect, xr[:, 0], d, beta, c_lr)
-    a, _ = rectified_rays(rect, xr[:, 0], d)
+def _rays(rect: Rectification, xr: np.ndarray, d: np.ndarray, beta: float, c_lr: float
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """Left-frame rays (N, 3) (unit z in the rectified frame) of rectified positions
+    ``xr`` (N, 2) with disparities ``d`` (N,), and their inverse depths (N,) (1/m) for
+    the yaw correction ``beta``: :func:`~rigkit.pipeline.depth.triangulate_z` as 1/z,
+    finite for every disparity (a point beyond infinity has a negative one)."""
+    a, b = rectified_rays(rect, xr[:, 0], d)
+    t = np.tan(beta)
+    w = (a - (b + t) / (1.0 - b * t)) / c_lr
     f = rect.K[0, 0]
     py = (xr[:, 1] - rect.K[1, 2] - rect.canvas[1, 2]) / f
-    X_rect = np.stack([a * z, py * z, z], axis=1)
-    return X_rect @ rect.R_rect  # rectified -> left frame (R_rect^T applied to rows)
+    ray = np.stack([a, py, np.ones_like(a)], axis=1) @ rect.R_rect  # rectified -> left
+    return ray, w
 
 
 def back_projection(
@@ -127,10 +132,13 @@ def back_projection(
 ) -> np.ndarray:
     """Where the back camera sees the left points at rectified positions ``xr`` (N, 2)
     with disparities ``d`` (N,) (full-resolution px, ``x_left - x_right``): (N, 2) px,
-    ideal pinhole, for parameters ``p`` (:attr:`Ambiguity.parameters`)."""
-    X = _points(rect, xr, d, p[0], c_lr)
+    ideal pinhole, for parameters ``p`` (:attr:`Ambiguity.parameters`). The point
+    ``ray / w`` seen from the back camera's centre ``c`` projects as ``R (ray - w c)``
+    (scaled by ``w``), smooth and finite for every ``w``: the fit never meets a point
+    that its trial yaw puts beyond infinity as a non-finite residual."""
+    ray, w = _rays(rect, xr, d, p[0], c_lr)
     R = rotvec_to_matrix(p[1:4])
-    Xb = (X - np.array([p[4], p[5], -c_lb])) @ R.T
+    Xb = (ray - w[:, None] * np.array([p[4], p[5], -c_lb])) @ R.T
     K = rect.K
     return Xb[:, :2] / Xb[:, 2:3] * K[0, 0] + K[:2, 2]
 
@@ -139,28 +147,22 @@ def _residuals(p, rect, xr, d, pb, c_lr, c_lb):
     return (back_projection(p, rect, xr, d, c_lr, c_lb) - pb).ravel()
 
 
-def back_view_start(
-    m: Matches, f: float, centre: np.ndarray, c_lb: float
-) -> tuple[float, np.ndarray]:
-    """From the left/back coarse affine map ``m.affine``: the range (m) its
-    magnification implies (PipelineError where it shows none) and the back camera's
-    rotation vector (3,) (rad, left -> back, small angles) that its turn and its shift
-    of the image ``centre`` (px) imply for focal length ``f`` (px)."""
-    A = m.affine[:, :2]
-    s = affine_scale(m.affine)
-    z0 = check_magnification(s, c_lb)
-    turn = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
-    du, dv = A @ centre + m.affine[:, 2] - s * centre
-    return z0, np.array([np.arctan(dv / f), -np.arctan(du / f), -turn])
-
-
-def _initial(m: Matches, rect: Rectification, xr, d, c_lr: float, c_lb: float) -> np.ndarray:
-    f = rect.K[0, 0]
-    z0, rotvec = back_view_start(m, f, np.array([rect.K[0, 2], rect.K[1, 2]]), c_lb)
+def _initial(start: BackStart, rect: Rectification, xr, d, c_lr: float
+             ) -> np.ndarray:
+    """The fit's start from ``start`` (the range the back view's magnification implies
+    at the matches' mean inverse depth, and its rotation vector;
+    :func:`~rigkit.pipeline.motion.back_view_start`): the yaw that gives the matches
+    that mean inverse depth (one Newton step from its first-order value; inverse depth
+    is nearly linear in the yaw), no sideways or vertical offset."""
+    z0, rotvec = start
     a, b = rectified_rays(rect, xr[:, 0], d)
-    # triangulate_z: z = c_lr / (a - tan(atan(b) + beta)); solve for z = z0.
-    beta0 = float(np.median(np.arctan(a - c_lr / z0) - np.arctan(b)))
-    return np.concatenate([[beta0], rotvec, [0.0, 0.0]])
+    # 1/z = (a - tan(atan b + beta)) / c_lr ~ (a - b - beta (1 + b^2)) / c_lr
+    beta = float((np.mean(a - b) - c_lr / z0) / np.mean(1 + b * b))
+    t = np.tan(beta)
+    w = (a - (b + t) / (1 - b * t)) / c_lr
+    slope = -np.mean((1 + t * t) * (1 + b * b) / (1 - b * t) ** 2) / c_lr  # d mean(w) / d beta
+    beta -= float((np.mean(w) - 1.0 / z0) / slope)
+    return np.concatenate([[beta], rotvec, [0.0, 0.0]])
 
 
 def remove_ambiguity(
@@ -170,6 +172,7 @@ def remove_ambiguity(
     rect: Rectification,
     rig: RigGeometry,
     settings: PipelineSettings = DEFAULT,
+    start: BackStart | None = None,
 ) -> Ambiguity:
     """Fit the right camera's yaw correction from left/back ``matches`` (ideal pinhole
     pixels, see :mod:`rigkit.pipeline.lens`) of the ``rig``: its baselines, and whether
@@ -177,7 +180,10 @@ def remove_ambiguity(
     points is carried: :func:`_principal_point_beta_sigma`).
 
     disparity: (h, w) float32 on the ``disparity_scale``-resized rectified canvas, px,
-    ``x_left - x_right``, NaN = unknown.
+    ``x_left - x_right``, NaN = unknown. ``start``: where the fit starts, the range
+    the back view's magnification implies and its rotation
+    (:func:`~rigkit.pipeline.motion.back_view_start` of the rig's motion); None: of
+    the back view's motion measured from ``matches`` alone.
     """
     xr, d = _sample_disparity(
         disparity, disparity_scale, rect, matches.left, settings.edge_window_px
@@ -190,7 +196,10 @@ def remove_ambiguity(
         )
     xr, d, pb = xr[ok], d[ok], matches.other[ok]
     c_lr, c_lb = rig.baseline_lr_m, rig.baseline_lb_m
-    fit, inl = _fit(matches, rect, xr, d, pb, c_lr, c_lb)
+    if start is None:
+        centre = np.array([rect.K[0, 2], rect.K[1, 2]])
+        start = back_view_start(view_motion(matches, rect.K[0, 0], centre, "z"), c_lb)
+    fit, inl = _fit(start, rect, xr, d, pb, c_lr, c_lb)
     args = (rect, xr[inl], d[inl], pb[inl], c_lr, c_lb)
     jack_sigma = _jackknife_beta_sigma(
         fit.x, args, matches.left[ok][inl], settings.jackknife_blocks
@@ -327,15 +336,6 @@ def residual_shear_sq(px: np.ndarray, residuals: np.ndarray) -> float:
     return max(shears[0] ** 2 + shears[1] ** 2 - noise, 0.0)
 
 
-def spatial_blocks(px: np.ndarray, blocks: int) -> np.ndarray:
-    """Which of a ``blocks`` x ``blocks`` grid over the points' bounding box each of
-    the (N, 2) pixel positions ``px`` lies in: (N,) int labels. Blocks far wider than
-    heat shimmer's patches hold errors that are nearly independent of each other's."""
-    lo, hi = px.min(axis=0), px.max(axis=0) + 1e-9
-    cell = np.floor((px - lo) / (hi - lo) * blocks).astype(int)
-    return cell[:, 1] * blocks + cell[:, 0]
-
-
 def _jackknife_beta_sigma(
     p: np.ndarray, args: tuple, left_px: np.ndarray, blocks: int
 ) -> float:
@@ -367,11 +367,11 @@ def _rms(res: np.ndarray) -> float:
 _SCALES = np.array([1e-4, 1e-3, 1e-3, 1e-3, 0.1, 0.1])  # typical sizes of the parameters
 
 
-def _fit(matches, rect, xr, d, pb, c_lr: float, c_lb: float):
-    """Robust fit of (beta, back rotation, back offset); returns (final fit on the
-    inliers, inlier mask over the given matches)."""
+def _fit(start: BackStart, rect, xr, d, pb, c_lr: float, c_lb: float):
+    """Robust fit of (beta, back rotation, back offset) from ``start`` (:func:`_initial`);
+    returns (final fit on the inliers, inlier mask over the given matches)."""
     args = (rect, xr, d, pb, c_lr, c_lb)
-    p0 = _initial(matches, rect, xr, d, c_lr, c_lb)
+    p0 = _initial(start, rect, xr, d, c_lr)
     fit = least_squares(_residuals, p0, args=args, x_scale=_SCALES)
     # A redescending loss: a wrong disparity moves a point in the back view by little,
     # so outliers are small and a bounded-influence (L1-like) loss would still be biased.

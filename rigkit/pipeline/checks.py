@@ -20,10 +20,11 @@ from rigkit.pipeline.features import Matches
 from rigkit.pipeline.rectify import Rectification, apply_homography
 
 MIN_PARALLAX_PX = 0.5
-"""Least depth relief the method measures: the spread (5th to 95th percentile) of the
-matches' rectified disparities, full-resolution px (a scene whose depths span 1.6 % at
-300 m, seen 2 m apart at f = 14,650 px, spreads them over 1.6 px and gives 98.8 % of its
-pixels within 1 %)."""
+"""Depth relief below which a scene is called nearly flat: the spread (5th to 95th
+percentile) of the matches' rectified disparities beyond their noise, full-resolution
+px (a scene whose depths span 1.6 % at 300 m, seen 2 m apart at f = 14,650 px, spreads
+them over 1.6 px and gives 98.8 % of its pixels within 1 %). Less is no refusal: the
+back view's magnification gives the range of a flat scene too; the run says so."""
 NOISE_SPAN = 3.29
 """The 5th to 95th percentile span of a normal distribution, in standard deviations."""
 TRACKING_FLOOR_PX = 0.01
@@ -36,18 +37,10 @@ for the right view to count as seen from elsewhere: a camera only turned spreads
 relief adds to noise in quadrature, so field scenes whose disparities spread 3.4 and
 5.0 px under shimmer spreading them 1.3 and 1.8 px stand 2.7 times clear."""
 MAX_IMPLIED_RANGE_M = 50_000.0  # beyond this, the back view shows no magnification
+NO_MAGNIFICATION_SIGMAS = 3.0
+"""A magnification within this many standard errors of none is none."""
 MAX_RIGHT_SCALE_CHANGE = 0.01
 """Left and right views are at the same distance: a larger scale change is zoom."""
-
-
-def affine_scale(affine: np.ndarray) -> float:
-    """The scale of a (2, 3) affine map between two views (other / left size), along
-    the image's columns: the norm of its second row, which a turn of the view leaves
-    alone. Left/right parallax stretches or compresses the rows only (a facade turned
-    away from the rig: a right view that was 0.981x the left one along the rows, and
-    1.000x along the columns, read as 0.991x by the determinant, smaller than the back
-    view); a zoom or the back view's magnification scales both."""
-    return float(np.hypot(affine[1, 0], affine[1, 1]))
 
 
 def roles_problem(right: float, back: float, baseline_lb_m: float) -> str | None:
@@ -63,11 +56,11 @@ def roles_problem(right: float, back: float, baseline_lb_m: float) -> str | None
             "the right frame looks like the one taken behind; were right and back swapped?")
 
 
-def check_roles(lr: Matches, lb: Matches, baseline_lb_m: float) -> None:
-    """PipelineError when the right (matches ``lr``) and back (``lb``) views look
-    swapped (:func:`roles_problem`), the back view shows no magnification
-    (:func:`check_magnification`), or the right one is zoomed."""
-    right, back = affine_scale(lr.affine), affine_scale(lb.affine)
+def check_roles(right: float, back: float, baseline_lb_m: float) -> None:
+    """PipelineError when views of scale ``right`` and ``back`` against the left one
+    (:attr:`rigkit.pipeline.motion.ViewMotion.scale`: at the matches' mean depth, their
+    depths' parallax taken out) look swapped (:func:`roles_problem`), the back view
+    shows no magnification (:func:`check_magnification`), or the right one is zoomed."""
     problem = roles_problem(right, back, baseline_lb_m)
     if problem is not None:
         raise PipelineError(problem)
@@ -111,7 +104,8 @@ class Parallax:
     noise; depth relief seen from C_lr apart adds to it. A flat scene square to the view
     has no relief either, so a spread as small as noise cannot tell a tripod that was not
     moved from a flat scene; one clear of noise whose relief (:attr:`relief_px`) is under
-    :data:`MIN_PARALLAX_PX` is a moved tripod before a scene with little depth.
+    :data:`MIN_PARALLAX_PX` is a moved tripod before a scene with little depth, whose
+    range the back view gives (:meth:`little_relief`).
     """
 
     spread_px: float
@@ -129,22 +123,29 @@ class Parallax:
 
     def problem(self) -> tuple[str, str] | None:
         """What is wrong (a message and what to redo), or None where the disparities
-        spread clear of noise and, beyond it, by :data:`MIN_PARALLAX_PX`. The one rule
+        spread clear of noise: the right frame was taken from elsewhere. The one rule
         of the on-site check (:mod:`rigkit.capture.field`) and of processing
-        (:func:`check_parallax`)."""
-        if self.moved and self.relief_px >= MIN_PARALLAX_PX:
-            return None
+        (:func:`check_parallax`). A scene with little relief is no problem: the back
+        view's magnification gives its range (:meth:`little_relief`)."""
         if self.moved:
-            return (f"little depth in view: the right frame moved ({self.relief_px:.2f} px "
-                    f"of parallax), but the scene is nearly flat (depth needs "
-                    f"{MIN_PARALLAX_PX:g} px)",
-                    "aim where near and far things share the view, and take the three "
-                    "frames again")
+            return None
         return (f"no parallax: the disparities vary by {self.spread_px:.2f} px, no more "
                 f"than the matches' noise ({self.noise_px:.2f} px): the tripod was not "
                 "moved, or the same view was taken twice",
                 "move the tripod by C_lr to the right of the left position and take the "
                 "right frame again")
+
+    def little_relief(self) -> str | None:
+        """One line where the right frame moved but the scene's relief spreads the
+        disparities by less than :data:`MIN_PARALLAX_PX` beyond noise: its range still
+        comes from the back view's magnification (the paper's point), but depth
+        differences within it are hardly resolved; else None."""
+        if not self.moved or self.relief_px >= MIN_PARALLAX_PX:
+            return None
+        return (f"little depth in view: {self.relief_px:.2f} px of parallax across the scene "
+                f"(under {MIN_PARALLAX_PX:g} px): its range comes from the back view's "
+                "magnification, but depth differences within it are barely resolved (aim "
+                "where near and far things share the view for relief)")
 
 
 def measure_parallax(matches: Matches, rect: Rectification, reduction: float = 1.0
@@ -161,24 +162,34 @@ def measure_parallax(matches: Matches, rect: Rectification, reduction: float = 1
     return Parallax(float(hi - lo) * reduction, noise * reduction)
 
 
-def check_parallax(matches: Matches, rect: Rectification) -> None:
-    """PipelineError where the left/right ``matches`` show too little parallax for depth
-    (:meth:`Parallax.problem`)."""
-    problem = measure_parallax(matches, rect).problem()
+def check_parallax(matches: Matches, rect: Rectification) -> Parallax:
+    """The left/right ``matches``' :class:`Parallax` under ``rect``; PipelineError where
+    it shows that the right frame was not taken from elsewhere (:meth:`Parallax.problem`)."""
+    parallax = measure_parallax(matches, rect)
+    problem = parallax.problem()
     if problem is not None:
         message, redo = problem
         raise PipelineError(f"left/right: {message} ({redo})")
+    return parallax
 
 
-def check_magnification(scale: float, baseline_lb_m: float) -> float:
+def check_magnification(scale: float, baseline_lb_m: float, sigma: float = 0.0) -> float:
     """The range (m) that the back view's magnification ``scale`` (< 1) implies at
-    C_lb; PipelineError if there is no magnification, or the wrong way round."""
+    C_lb; PipelineError if there is no magnification (none beyond
+    :data:`MAX_IMPLIED_RANGE_M`, or none clear of three times the scale's standard
+    error ``sigma``), or it is the wrong way round."""
     if scale >= 1.0:
         raise PipelineError(
             f"left/back: the back view shows the scene {scale:.5f}x as large as the left "
             "view (expected < 1: was the back frame taken behind the left camera?)"
         )
     z = implied_range_m(scale, baseline_lb_m)
+    if z <= MAX_IMPLIED_RANGE_M and 1.0 - scale <= NO_MAGNIFICATION_SIGMAS * sigma:
+        raise PipelineError(
+            f"no magnification between left and back clear of the matches' noise: the back "
+            f"view is {scale:.5f} +- {sigma:.5f}x the left view (was the back frame taken "
+            "from the left position? step back by C_lb and capture again)"
+        )
     if z > MAX_IMPLIED_RANGE_M:
         raise PipelineError(
             f"no magnification between left and back: the back view is {scale:.6f}x the "

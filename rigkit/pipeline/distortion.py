@@ -47,7 +47,7 @@ import numpy as np
 
 from rigkit.core.lazy import function
 from rigkit.geometry import Distortion, distort
-from rigkit.pipeline.ambiguity import back_view_start, shift_sensitivity, spatial_blocks
+from rigkit.pipeline.ambiguity import shift_sensitivity, spatial_blocks
 from rigkit.pipeline.bundle import (
     Centres,
     Problem,
@@ -59,6 +59,7 @@ from rigkit.pipeline.bundle import (
 from rigkit.pipeline.covariance import cluster_covariance, significant_change
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.motion import BackStart, back_view_start, rig_motion
 from rigkit.pipeline.rectify import Rectification, pseudo_rectify
 from rigkit.pipeline.rig import CENTRED, RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
@@ -152,7 +153,8 @@ def _number(value: float) -> float | None:
     return round(value, 4) if np.isfinite(value) else None
 
 
-def three_view_tracks(m_lr: Matches, m_lb: Matches) -> tuple[np.ndarray, ...]:
+def three_view_tracks(m_lr: Matches, m_lb: Matches
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Left corners matched in both other views: (left, right, back), each (N, 2)
     float64 recorded px. Both match sets track the same left corners, so a track is a
     left position present in both."""
@@ -173,7 +175,7 @@ def corner_shift_px(lens: Lens) -> float:
 
 def fit_distortion(
     m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, rig: RigGeometry,
-    settings: PipelineSettings,
+    settings: PipelineSettings, start: BackStart | None = None,
 ) -> LensFit:
     """Refine ``lens``'s radial terms (``settings.distortion_terms``: 1 = k1, 2 = k1 and
     k2) from the left/right and left/back matches (recorded px) of the ``rig``. ``rect``
@@ -188,8 +190,10 @@ def fit_distortion(
     bend was 1-16 % off with +-30 px between views); the standard errors include that,
     as a consider term (see :mod:`rigkit.pipeline.ambiguity`); whether the fit is taken
     depends on the noise part alone. ``settings.jackknife_blocks``: spatial blocks per
-    image side for the noise part's cluster-robust estimate (:func:`_lens_sigmas`)."""
-    terms = _fit_terms(m_lr, m_lb, rect, lens, rig, settings, settings.distortion_terms)
+    image side for the noise part's cluster-robust estimate (:func:`_lens_sigmas`).
+    ``start``: the range and back rotation the bundle starts from
+    (:func:`~rigkit.pipeline.motion.back_view_start`); None: of the tracks' motion."""
+    terms = _fit_terms(m_lr, m_lb, rect, lens, rig, settings, settings.distortion_terms, start)
     return terms.centred()
 
 
@@ -237,7 +241,7 @@ class _TermsFit:
 
 def _fit_terms(
     m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, rig: RigGeometry,
-    settings: PipelineSettings, n_terms: int,
+    settings: PipelineSettings, n_terms: int, start: BackStart | None = None,
 ) -> _TermsFit:
     """``n_terms`` radial terms of :func:`fit_distortion` fitted and judged, every view
     bent about the rig's principal point for it."""
@@ -253,7 +257,10 @@ def _fit_terms(
     keep = np.unique(np.linspace(0, len(pl) - 1, min(len(pl), MAX_TRACKS)).astype(int))
     tracks = (pl[keep], pr[keep], pb[keep])
     c_lr, c_lb = rig.baseline_lr_m, rig.baseline_lb_m
-    z0, back_rotvec = back_view_start(m_lb, lens.focal_px, lens.centre, c_lb)
+    if start is None:
+        _, back = rig_motion(m_lr, m_lb, lens.focal_px, lens.centre, (pl, pr, pb))
+        start = back_view_start(back, c_lb)
+    z0, back_rotvec = start
     problem = Problem(lens, tracks, c_lr, c_lb, n_terms, 1.0 / z0, centres.given)
     p0 = initial(problem, rect, back_rotvec)
     scales = np.array([1e-3] * (n_terms + 7) + [0.1, 0.1])
@@ -415,7 +422,7 @@ def _fit_centres_once(
 
 def refine_lens(
     m_lr: Matches, m_lb: Matches, rect: Rectification, lens: Lens, rig: RigGeometry,
-    settings: PipelineSettings,
+    settings: PipelineSettings, start: BackStart | None = None,
 ) -> LensFit:
     """:func:`fit_distortion` from the given ``lens``, in every radial term it uses (at
     most two: the views constrain no more). Where the views rule the given lens out,
@@ -424,10 +431,10 @@ def refine_lens(
     profile (whose k1, k2 and k3 each move the corner by ~26 px), refining k1 and k2
     with its k3 kept fitted the tracks exactly as well as the fit from nothing (robust
     cost 43.10 against 43.28) but left +4.3 % of depth bias: the tracks cannot tell
-    the shapes apart, the depth can."""
+    the shapes apart, the depth can. ``start``: as :func:`fit_distortion`'s."""
     _, k2, _, _, k3 = lens.distortion
     terms = max(settings.distortion_terms, 2 if (k2 or k3) else 1)
-    first = _fit_terms(m_lr, m_lb, rect, lens, rig, settings, terms)
+    first = _fit_terms(m_lr, m_lb, rect, lens, rig, settings, terms, start)
     if lens.identity or not first.result.significant:
         return first.centred()
     # The views rule the given lens out: its centres are not worth fitting.
@@ -435,7 +442,8 @@ def refine_lens(
     # under the P1000 profile (77 px at the corner) one scene settled in a minimum with
     # 5x the tracks' RMS of the fit from nothing.
     bare_rect = pseudo_rectify(m_lr, lens.focal_px, lens.size)
-    bare = fit_distortion(m_lr, m_lb, bare_rect, Lens(lens.focal_px, lens.size), rig, settings)
+    bare = fit_distortion(m_lr, m_lb, bare_rect, Lens(lens.focal_px, lens.size), rig, settings,
+                          start)
     return replace(bare, distortion=bare.fitted, start=lens.distortion, significant=True,
                    start_corner_px=first.result.start_corner_px, start_rejected=True)
 

@@ -14,11 +14,12 @@ from rigkit.errors import InputError, PipelineError
 from rigkit.geometry import NO_DISTORTION, Distortion
 from rigkit.pipeline.agreement import view_agreement
 from rigkit.pipeline.ambiguity import Ambiguity, remove_ambiguity
-from rigkit.pipeline.checks import check_distinct, check_parallax, check_roles
+from rigkit.pipeline.checks import Parallax, check_distinct, check_parallax, check_roles
 from rigkit.pipeline.depth import to_left
-from rigkit.pipeline.distortion import LensFit, refine_lens
+from rigkit.pipeline.distortion import LensFit, refine_lens, three_view_tracks
 from rigkit.pipeline.features import Matches, match_all
 from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.motion import BackStart, back_view_start, rig_motion
 from rigkit.pipeline.rectify import (
     Rectification,
     apply_homography,
@@ -58,6 +59,8 @@ class DepthResult:
     ``offset_depth_fraction``: the relative depth error (one sigma, unitless) that the
     disparity offset's uncertainty alone leaves at that depth; it is the same for
     every pixel of that depth, so averaging over pixels does not reduce it.
+    ``parallax``: the left/right disparities' spread (:class:`~rigkit.pipeline.checks.
+    Parallax`; a nearly flat scene: :meth:`relief_warning`).
     """
 
     depth: np.ndarray
@@ -77,6 +80,7 @@ class DepthResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     median_depth_m: float = float("nan")
     offset_depth_fraction: float = float("nan")
+    parallax: Parallax | None = None
 
     def flags(self) -> np.ndarray:
         """(H, W) uint8, what each pixel's depth rests on, as bits (``FLAG_*``): matched
@@ -92,6 +96,10 @@ class DepthResult:
     def offset_warning(self, frames: int = 1) -> str | None:
         """See :func:`offset_warning`; ``frames`` per position were stacked."""
         return offset_warning(self.offset_depth_fraction, self.offset_sources(), frames)
+
+    def relief_warning(self) -> str | None:
+        """One line where the scene is nearly flat (:meth:`Parallax.little_relief`)."""
+        return self.parallax.little_relief() if self.parallax is not None else None
 
     def offset_sources(self) -> dict[str, float]:
         """What the disparity offset's standard error is made of (px, one sigma each,
@@ -143,6 +151,9 @@ class DepthResult:
                 "R_lr": r.R_lr.tolist(),
                 "R_rect": r.R_rect.tolist(),
             },
+            "parallax_px": None if self.parallax is None else {
+                "spread": self.parallax.spread_px, "noise": self.parallax.noise_px,
+                "relief": self.parallax.relief_px},
             "density": float(valid.mean()),
             "no_surface_fraction": float(self.no_surface.mean()),
             "views_disagree_fraction": float(self.disagree.mean()),
@@ -257,14 +268,18 @@ def estimate_depth(
     # The left image prepared once for both pairs, the views' work in parallel.
     raw_lr, raw_lb = match_all(left, [(right, "left/right"), (back, "left/back")], s)
     check_distinct(left, right, back)  # after matching: a blank scene says so first
-    check_roles(raw_lr, raw_lb, rig.baseline_lb_m)
+    given = Lens(rig.focal_px, size, rig.distortion)
+    right_motion, back_motion = rig_motion(raw_lr, raw_lb, rig.focal_px, given.centre,
+                                           three_view_tracks(raw_lr, raw_lb))
+    check_roles(right_motion.scale, back_motion.scale, rig.baseline_lb_m)
+    start = back_view_start(back_motion, rig.baseline_lb_m)
     lap("matching", 0.2)
-    (lens, right_lens, back_lens), lens_fit = _lenses(raw_lr, raw_lb, rig, size, s)
+    (lens, right_lens, back_lens), lens_fit = _lenses(raw_lr, raw_lb, rig, size, s, start)
     if lens_fit is not None:
         lap("lens", 0.25)
     m_lr, m_lb = _ideal(raw_lr, lens, right_lens), _ideal(raw_lb, lens, back_lens)
     rect = pseudo_rectify(m_lr, rig.focal_px, size, s, lens)
-    check_parallax(m_lr, rect)
+    parallax = check_parallax(m_lr, rect)
     scale = s.stereo_scale
     rl, rr = warp_pair(left, right, rect, scale, lens, right_lens)
     lap("rectification", 0.35)
@@ -277,13 +292,13 @@ def estimate_depth(
         disparity = matched.result()
     disparity = restrict_to_footprints(np.where(surface, disparity, np.nan), left_fp, right_fp)
     lap("stereo", 0.75)
-    amb = remove_ambiguity(m_lb, disparity, scale, rect, rig, s)
+    amb = remove_ambiguity(m_lb, disparity, scale, rect, rig, s, start)
     lap("ambiguity", 0.8)
     agree = view_agreement(rl, rr, back, disparity, scale, rect, amb, back_lens, rig, s)
     if agree.disagree.any():
         disparity = np.where(agree.disagree, np.nan, disparity).astype(np.float32)
         if _touches(m_lb, agree.disagree, rect, scale):
-            amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s)
+            amb = _without_disagreeing(amb, m_lb, disparity, scale, rect, rig, s, start)
     lap("agreement", 0.85)
     if lens_fit is not None:  # the lens and one camera's centre, fitted, move the offset too
         offset_sigma = float(np.sqrt(amb.offset_sigma_px**2 + lens_fit.offset_sigma_px**2
@@ -326,24 +341,26 @@ def estimate_depth(
         timings_s=timings,
         median_depth_m=z_median,
         offset_depth_fraction=offset_fraction,
+        parallax=parallax,
     )
 
 
 def _lenses(
     raw_lr: Matches, raw_lb: Matches, rig: RigGeometry, size: tuple[int, int],
-    s: PipelineSettings,
+    s: PipelineSettings, start: BackStart | None = None,
 ) -> tuple[tuple[Lens, Lens, Lens], LensFit | None]:
     """The lens the later stages use, as each view (left, right, back) sees it: the
     given one, refined from the views unless ``s.distortion_terms`` is 0, each view
-    bent about its own centre: fitted (:mod:`rigkit.pipeline.distortion`), else the
-    rig's principal point for it."""
+    bent about its own centre: fitted (:mod:`rigkit.pipeline.distortion`, from
+    ``start``: :func:`~rigkit.pipeline.motion.back_view_start`), else the rig's
+    principal point for it."""
     given = Lens(rig.focal_px, size, rig.distortion)
     if not s.distortion_terms:
         left, right, back = (Lens(rig.focal_px, size, rig.distortion, centre)
                              for centre in rig.principal_points_px)
         return (left, right, back), None
-    start = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
-    fit = refine_lens(raw_lr, raw_lb, start, given, rig, s)
+    rectified = pseudo_rectify(_ideal(raw_lr, given), rig.focal_px, size, s)
+    fit = refine_lens(raw_lr, raw_lb, rectified, given, rig, s, start)
     return (fit.lens(rig.focal_px, size, 0), fit.lens(rig.focal_px, size, 1),
             fit.lens(rig.focal_px, size, 2)), fit
 
@@ -359,14 +376,14 @@ def _touches(m: Matches, mask: np.ndarray, rect: Rectification, scale: float) ->
 
 def _without_disagreeing(
     amb: Ambiguity, m_lb: Matches, disparity: np.ndarray, scale: float,
-    rect: Rectification, rig: RigGeometry, s: PipelineSettings,
+    rect: Rectification, rig: RigGeometry, s: PipelineSettings, start: BackStart,
 ) -> Ambiguity:
     """Ambiguity removal again, on the ``disparity`` without the pixels where the views
     disagree: what moved between the captures must not pull the offset. Where too few
     back-view matches remain for that, the first fit ``amb`` stands (its robust loss
     has already discounted the matches that fit no single pose)."""
     try:
-        return remove_ambiguity(m_lb, disparity, scale, rect, rig, s)
+        return remove_ambiguity(m_lb, disparity, scale, rect, rig, s, start)
     except PipelineError:
         return amb
 

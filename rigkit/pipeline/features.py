@@ -43,17 +43,21 @@ class Matches:
     coarse_inliers: int
 
 
-def _track(a: np.ndarray, b: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pyramidal Lucas-Kanade from image ``a`` to ``b``: (new points, status)."""
+def _track(a: np.ndarray, b: np.ndarray, points: np.ndarray,
+           start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Pyramidal Lucas-Kanade from image ``a`` to ``b``: (new points, status), each
+    search starting at ``start`` (N, 2) float32 (None: where the point is in ``a``)."""
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.005)
+    initial = points.copy() if start is None else start.copy()
     moved, status, _ = cv2.calcOpticalFlowPyrLK(
         a,
         b,
         points,
-        None,
+        initial,
         winSize=(21, 21),
         maxLevel=4,
-        criteria=crit,  # type: ignore[call-overload]
+        criteria=crit,
+        flags=0 if start is None else cv2.OPTFLOW_USE_INITIAL_FLOW,
     )
     return moved, status
 
@@ -118,11 +122,12 @@ def prepare_left(
 
 def _coarse_affine(ref: Reference, other: np.ndarray, what: str,
                    other_features: tuple[tuple, np.ndarray | None] | None = None
-                   ) -> tuple[np.ndarray, int]:
+                   ) -> tuple[np.ndarray, int, tuple[np.ndarray, np.ndarray]]:
     """The (2, 3) affine map from the left view's pixels to ``other``'s, from SIFT on
-    the coarse copies, and how many feature matches agree on it. ``other_features``:
-    ``other``'s SIFT keypoints and descriptors at ``ref.coarse_scale`` where they are
-    already known (None: found here)."""
+    the coarse copies, how many feature matches agree on it, and every feature match
+    that passed the ratio test (left, other: (M, 2) float64, full-resolution px) for
+    :func:`_predicted`. ``other_features``: ``other``'s SIFT keypoints and descriptors
+    at ``ref.coarse_scale`` where they are already known (None: found here)."""
     scale = ref.coarse_scale
     (k1, d1), (k2, d2) = (ref.keypoints, ref.descriptors), other_features or _sift(other, scale)
     if d1 is None or d2 is None or len(k1) < MIN_COARSE_MATCHES or len(k2) < MIN_COARSE_MATCHES:
@@ -149,7 +154,74 @@ def _coarse_affine(ref: Reference, other: np.ndarray, what: str,
     # Back to full-resolution pixel coordinates (pixel centres at integers).
     S = np.array([[scale, 0, 0.5 * scale - 0.5], [0, scale, 0.5 * scale - 0.5], [0, 0, 1]])
     A3 = np.linalg.inv(S) @ np.vstack([A, [0, 0, 1]]) @ S
-    return A3[:2], n_inl
+    full = [(p.astype(np.float64) + 0.5) / scale - 0.5 for p in (p1, p2)]
+    return A3[:2], n_inl, (full[0], full[1])
+
+
+FLOW_GRID = 8
+"""Cells per image side of the feature matches' residual field (:func:`_predicted`)."""
+FLOW_MIN_MATCHES = 5
+"""Feature matches a cell needs for its median residual to count."""
+FLOW_MAX = 0.1
+"""The largest residual a cell may take, as a fraction of the image width: depth from 200
+to 450 m parallaxes by 5 % of the width at 6 deg and 2 m; a larger median is a cell of
+false matches (where the other view does not see the scene at all)."""
+FLOW_MIN_PX = 4.0
+"""Residuals of the affine map smaller than this (full-resolution px) are left to the
+tracker's pyramid: a search starts where the affine map puts a corner, as it always
+did (a scene at one depth gives residuals of a pixel or two: its matches are those of
+an affine prediction, bit for bit)."""
+
+
+def _predicted(corners: np.ndarray, left: np.ndarray, other: np.ndarray, A: np.ndarray,
+               shape: tuple[int, int]) -> np.ndarray | None:
+    """Where to start each corner's search in the affine-warped view: (N, 2) float32,
+    or None where the affine map predicts every part of the view.
+
+    One affine map predicts a view only where the scene lies at about one depth:
+    ground receding from 200 to 450 m shifts its near part in the right view by tens
+    of px more than the map fitted to the rest (-90 px at the bottom of one 4608 px
+    frame), beyond what the tracker finds from the map's prediction, and no corner
+    there was tracked. The feature matches (``left``, ``other``: (M, 2) px, full
+    resolution, outliers among them) say where: their residuals against ``A``, the
+    median per cell of a :data:`FLOW_GRID` grid, where at least half its matches (and
+    :data:`FLOW_MIN_MATCHES`) agree with it and it is under :data:`FLOW_MAX` of the
+    width (cells without take their nearest cell's),
+    interpolated to the corners; a corner starts there where that residual exceeds
+    :data:`FLOW_MIN_PX`. The tracker's forward-backward check judges each track as
+    before."""
+    h, w = shape
+    Ainv = cv2.invertAffineTransform(A)
+    residual = other @ Ainv[:, :2].T + Ainv[:, 2] - left  # in the warped view's frame
+    cell = np.floor(left / [w / FLOW_GRID, h / FLOW_GRID]).astype(int).clip(0, FLOW_GRID - 1)
+    label = cell[:, 1] * FLOW_GRID + cell[:, 0]
+    field = np.full((FLOW_GRID * FLOW_GRID, 2), np.nan)
+    for k in np.unique(label):
+        here = residual[label == k]
+        if len(here) < FLOW_MIN_MATCHES:
+            continue
+        median = np.median(here, axis=0)
+        agree = np.hypot(*(here - median).T) <= max(FLOW_MIN_PX, 0.2 * np.hypot(*median))
+        plausible = np.hypot(*median) <= FLOW_MAX * w
+        if plausible and agree.sum() >= max(FLOW_MIN_MATCHES, len(here) // 2):
+            field[k] = np.median(here[agree], axis=0)
+    known = np.isfinite(field[:, 0])
+    if not known.any():
+        return None
+    centres = np.stack(np.meshgrid(np.arange(FLOW_GRID), np.arange(FLOW_GRID)), -1).reshape(-1, 2)
+    for k in np.flatnonzero(~known):  # the nearest cell that has one
+        field[k] = field[known][np.argmin(np.sum((centres[known] - centres[k]) ** 2, axis=1))]
+    grid = field.reshape(FLOW_GRID, FLOW_GRID, 2).astype(np.float32)
+    # bilinear between cell centres: cell k's centre at (k + 0.5) * size - 0.5 in px
+    gx = corners[:, 0] / (w / FLOW_GRID) - 0.5
+    gy = corners[:, 1] / (h / FLOW_GRID) - 0.5
+    at = (gx.astype(np.float32).reshape(-1, 1), gy.astype(np.float32).reshape(-1, 1))
+    flow = cv2.remap(grid, *at, cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE).reshape(-1, 2)
+    far = np.hypot(flow[:, 0], flow[:, 1]) > FLOW_MIN_PX
+    if not far.any():
+        return None
+    return np.where(far[:, None], corners + flow, corners).astype(np.float32)
 
 
 RATIO = 0.8
@@ -338,7 +410,7 @@ def match_to(
     """:func:`match_views` from a prepared left image, ``ref``; ``other_features``:
     ``other``'s SIFT features at ``ref.coarse_scale`` where already found."""
     left = ref.image
-    A, n_coarse = _coarse_affine(ref, other, what, other_features)
+    A, n_coarse, features = _coarse_affine(ref, other, what, other_features)
     warped = cv2.warpAffine(
         other, A, (left.shape[1], left.shape[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
         borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"),
@@ -347,8 +419,9 @@ def match_to(
     del warped
     l8 = ref.contrast
     p0 = ref.corners
-    p1, st1 = _track(l8, w8, p0)
-    p0b, st2 = _track(w8, l8, p1)  # and back, to check each track
+    start = _predicted(p0, *features, A, left.shape)
+    p1, st1 = _track(l8, w8, p0, start)
+    p0b, st2 = _track(w8, l8, p1, None if start is None else p0)  # and back, to check each
     h, w = left.shape
     fb = np.linalg.norm(p0b - p0, axis=1)
     ok = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (fb < settings.fb_max_px)

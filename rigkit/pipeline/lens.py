@@ -71,6 +71,29 @@ class Lens:
         x, y = distort(n[..., 0], n[..., 1], self.distortion)
         return np.stack([x, y], axis=-1) * self.focal_px + self.centre
 
+    def rays(self, pts: np.ndarray) -> np.ndarray:
+        """The back-projection of recorded pixels (N, 2) float64 (u, v), pixel centres at
+        integers: (N, 3) float64 rays in the camera frame (x right, y down, z forward)
+        with unit z, so that the point at depth z on pixel (u, v) is ``z * ray``. Through
+        the lens: undistorted, then the ideal pinhole's principal point (the image
+        centre) and focal length."""
+        ideal = (self.to_ideal(np.asarray(pts, np.float64).reshape(-1, 2))
+                 - self.image_centre) / self.focal_px
+        return np.column_stack([ideal, np.ones(len(ideal))])
+
+    def ray_rows(self, r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`rays` of every pixel of rows ``r0:r1``: their x and y (z is 1), float64,
+        broadcastable to (r1 - r0, W). Through :meth:`ideal_rows` with its knots on
+        absolute multiples of ``GRID_STEP`` rows, so that a row's rays are the same bits
+        whichever block of rows it is computed in (exact at the knots, bilinear in
+        between: 0.004 px at most, see :func:`smooth_map`)."""
+        top = r0 - r0 % GRID_STEP
+        u, v = self.ideal_rows(top, r1)
+        if u.shape[0] > 1:  # a bent lens: every pixel's own u (else one row for all)
+            u = u[r0 - top:]
+        centre = self.image_centre
+        return (u - centre[0]) / self.focal_px, (v[r0 - top:] - centre[1]) / self.focal_px
+
     def ideal_rows(self, r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
         """Ideal positions of the recorded pixels of rows ``r0:r1``, all columns: (u, v),
         float64, broadcastable to (r1 - r0, W) (see :func:`smooth_map`). Without

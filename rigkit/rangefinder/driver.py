@@ -31,6 +31,7 @@ from typing import Any, Protocol, TextIO
 import serial
 
 from rigkit.errors import InputError
+from rigkit.rangefinder.defaults import DEFAULT_TIMEOUT_S
 from rigkit.rangefinder.framing import (
     ChecksumError,
     FrameError,
@@ -42,8 +43,8 @@ from rigkit.rangefinder.framing import (
 )
 from rigkit.rangefinder.protocols import get_protocol
 
-DEFAULT_TIMEOUT_S = 30.0
-"""Default wait for one reading, in seconds (time to aim and fire by hand)."""
+if "rigkit.rangefinder" not in serial.protocol_handler_packages:  # sim:// URLs as ports
+    serial.protocol_handler_packages.append("rigkit.rangefinder")
 POLL_S = 0.1
 """Read timeout set on ports the driver opens; bounds timeout overshoot."""
 PARITIES = ("N", "E", "O", "M", "S")

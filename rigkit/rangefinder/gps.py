@@ -10,8 +10,10 @@ A GGA sentence (NMEA 0183; talker GP, GN, GL, GA, GB or BD)::
     $GPGGA,hhmmss.ss,ddmm.mmmm,N,dddmm.mmmm,E,q,ss,h.h,a.a,M,g.g,M,,*CS
 
 q is the fix quality (0 = no fix), ss the satellites in use, h.h the horizontal
-dilution of precision, a.a the antenna's height above mean sea level in metres, g.g
-the geoid's height above the WGS 84 ellipsoid. The checksum is the XOR of the bytes
+dilution of precision, a.a the antenna's height above mean sea level in metres (the
+receiver's own geoid model, which GGA does not name), g.g the geoid's height above the
+WGS 84 ellipsoid there (the "geoid separation" N: the ellipsoidal height is a.a + g.g;
+empty where the receiver does not send it). The checksum is the XOR of the bytes
 between ``$`` and ``*``, as the TruPulse's. Other sentences (RMC, GSV, ...) are noted
 and skipped.
 """
@@ -49,7 +51,9 @@ class GpsFix:
     positive; ``height_m``: antenna above mean sea level, m; ``quality``: GGA fix
     quality (1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float, ...); ``satellites`` in use;
     ``hdop``: horizontal dilution of precision, None if not sent; ``raw``: the sentence
-    as received, without its line end."""
+    as received, without its line end; ``geoid_separation_m``: the geoid's height above
+    the WGS 84 ellipsoid, m (``height_m`` plus it is the ellipsoidal height), None if not
+    sent."""
 
     lat_deg: float
     lon_deg: float
@@ -58,6 +62,7 @@ class GpsFix:
     satellites: int
     hdop: float | None
     raw: bytes
+    geoid_separation_m: float | None = None
 
 
 def split_nmea(buffer: bytes) -> tuple[list[bytes], bytes]:
@@ -86,6 +91,9 @@ def parse_nmea(frame: bytes) -> GpsFix | Notice:
                       error=f"no fix yet ({satellites} satellites)")
     if values[9] not in ("M", ""):
         raise FrameError(f"GGA altitude unit {values[9]!r}, expected M")
+    separation, unit = (values[10], values[11]) if len(values) > 11 else ("", "")
+    if separation and unit not in ("M", ""):
+        raise FrameError(f"GGA geoid separation unit {unit!r}, expected M")
     return GpsFix(
         lat_deg=_coordinate(values[1], values[2], "NS", 2),
         lon_deg=_coordinate(values[3], values[4], "EW", 3),
@@ -94,6 +102,7 @@ def parse_nmea(frame: bytes) -> GpsFix | Notice:
         satellites=satellites,
         hdop=_number(values[7], "HDOP") if values[7] else None,
         raw=frame.rstrip(b"\r\n"),
+        geoid_separation_m=_number(separation, "geoid separation") if separation else None,
     )
 
 
@@ -136,19 +145,24 @@ def encode_gga(
     quality: int = 1,
     satellites: int = 9,
     hdop: float = 0.9,
+    geoid_separation_m: float | None = 47.3,
 ) -> bytes:
     """The GGA sentence a receiver sends for a position (``utc_s``: seconds into the UTC
-    day), with CR LF; the inverse of :func:`parse_nmea` to 1e-6 minutes (2 mm)."""
+    day; ``height_m`` above mean sea level, ``geoid_separation_m`` the geoid above the
+    ellipsoid, None: not sent), with CR LF; the inverse of :func:`parse_nmea` to 1e-6
+    minutes (2 mm)."""
     def dm(value: float, digits: int) -> str:
         degrees, minutes = divmod(round(abs(value) * 60.0, 6), 60.0)
         return f"{int(degrees):0{digits}d}{minutes:09.6f}"
 
+    separation = "" if geoid_separation_m is None else f"{geoid_separation_m:.2f}"
     hours, rest = divmod(utc_s % 86400.0, 3600.0)
     clock = f"{int(hours):02d}{int(rest // 60):02d}{rest % 60:05.2f}"
     position = ["", "", "", ""] if quality == 0 else [
         dm(lat_deg, 2), "N" if lat_deg >= 0 else "S", dm(lon_deg, 3), "E" if lon_deg >= 0 else "W"]
     return trupulse_sentence(["GPGGA", clock, *position, str(quality), f"{satellites:02d}",
-                              f"{hdop:.1f}", f"{height_m:.2f}", "M", "47.3", "M", "", ""])
+                              f"{hdop:.1f}", f"{height_m:.2f}", "M", separation,
+                              "M" if separation else "", "", ""])
 
 
 class GpsReceiver:
@@ -232,11 +246,26 @@ def open_gps(url: str, baud: int = GPS_BAUD, timeout: float = 30.0) -> GpsReceiv
     return GpsReceiver(open_serial(url, baud), name=url, timeout=timeout)
 
 
-def mean_position(fixes: list[GpsFix]) -> tuple[float, float, float]:
-    """(lat, lon, height) averaged over fixes (a few metres apart: degrees average
-    linearly); InputError for none."""
+@dataclass(frozen=True)
+class MeanFix:
+    """Fixes averaged: ``lat_deg``, ``lon_deg`` (WGS 84 degrees), ``height_m`` (above
+    the receiver's mean sea level, m) and ``geoid_separation_m`` (m; None unless every
+    fix sent one) over ``count`` fixes."""
+
+    lat_deg: float
+    lon_deg: float
+    height_m: float
+    geoid_separation_m: float | None
+    count: int
+
+
+def mean_position(fixes: list[GpsFix]) -> MeanFix:
+    """The fixes averaged (a few metres apart: degrees average linearly); InputError
+    for none."""
     if not fixes:
         raise InputError("no GPS fixes to average")
     n = len(fixes)
-    return (sum(f.lat_deg for f in fixes) / n, sum(f.lon_deg for f in fixes) / n,
-            sum(f.height_m for f in fixes) / n)
+    separations = [f.geoid_separation_m for f in fixes if f.geoid_separation_m is not None]
+    return MeanFix(sum(f.lat_deg for f in fixes) / n, sum(f.lon_deg for f in fixes) / n,
+                   sum(f.height_m for f in fixes) / n,
+                   sum(separations) / n if len(separations) == n else None, n)

@@ -27,6 +27,7 @@ above the horizontal, azimuth clockwise from north as the device reports it.
 from __future__ import annotations
 
 from rigkit.errors import InputError
+from rigkit.rangefinder.defaults import DEFAULT_BAUDS
 from rigkit.rangefinder.framing import ProtocolSpec
 from rigkit.rangefinder.trupulse import TRUPULSE_MAX_RANGE_M, parse_trupulse, split_trupulse
 from rigkit.rangefinder.vectronix import (
@@ -40,7 +41,7 @@ PROTOCOLS: dict[str, ProtocolSpec] = {
     "trupulse": ProtocolSpec(
         name="trupulse",
         description="Laser Technology TruPulse 200/360 ($PLTIT sentences, 4800 baud 8N1)",
-        default_baud=4800,
+        default_baud=DEFAULT_BAUDS["trupulse"],
         split=split_trupulse,
         parse=parse_trupulse,
         # $GO fires the laser on TruPulse 360B-class firmware; others ignore it.
@@ -52,7 +53,7 @@ PROTOCOLS: dict[str, ProtocolSpec] = {
     "vectronix": ProtocolSpec(
         name="vectronix",
         description="Safran Vectronix LRF module (>LM,Md command/response)",
-        default_baud=115200,
+        default_baud=DEFAULT_BAUDS["vectronix"],
         split=split_vectronix,
         parse=parse_vectronix,
         request=vectronix_frame("LM,Md,3"),

@@ -1,10 +1,12 @@
 """The one conversion between a laser range and a depth map's z, both ways.
 
 A rangefinder measures the **range r along its line of sight**, from its aperture; a
-depth map stores **z along the left camera's optical axis**. Both functions here take
-the laser spot's pixel and the camera's pinhole intrinsics, and the aperture's offset
-from the camera's optical centre, and find the point on the pixel's ray that is at
-depth z / at range r from the aperture.
+depth map stores **z along the left camera's optical axis**. The functions here take
+the laser spot's ray (:data:`Ray`: its pixel back-projected through the run's lens,
+:meth:`rigkit.pipeline.lens.Lens.rays`, as the laser comparison and ``rigkit export`` do;
+or an undistorted pixel and pinhole intrinsics) and the aperture's offset from the
+camera's optical centre, and find the point on the ray that is at depth z / at range r
+from the aperture.
 
 Pixel convention (the one the pipeline, the depth maps and :mod:`rigkit.synth` use):
 (u, v) with u along columns and v along rows, **pixel centres at integer
@@ -60,11 +62,44 @@ def parse_typed_range(text: str, profile: RigProfile) -> float:
         raise InputError(f"{exc} (type it in metres, e.g. 312.4)") from None
 
 
-def _direction(
-    pixel: tuple[float, float], fx: float, fy: float, cx: float, cy: float
-) -> tuple[float, float, float]:
-    """Ray of ``pixel`` with unit z, in (right, up, forward) axes (image v grows down)."""
-    return (pixel[0] - cx) / fx, -(pixel[1] - cy) / fy, 1.0
+Ray = tuple[float, float, float]
+"""A pixel's ray in the camera frame (x right, y down, z forward) with unit z: the point
+at depth z on it is z times the ray. Through the run's lens:
+:meth:`rigkit.pipeline.lens.Lens.rays`; a pinhole's: :func:`pinhole_ray`."""
+
+
+def pinhole_ray(pixel: tuple[float, float], fx: float, fy: float, cx: float, cy: float
+                ) -> Ray:
+    """The :data:`Ray` of ``pixel`` (u, v) of an undistorted image with pinhole
+    intrinsics ``fx``, ``fy``, ``cx``, ``cy`` (px, pixel centres at integers)."""
+    return (pixel[0] - cx) / fx, (pixel[1] - cy) / fy, 1.0
+
+
+def _aperture(offset_m: Offset) -> Ray:
+    """The aperture's (right, up, forward) offset in the camera frame (y down)."""
+    return offset_m[0], -offset_m[1], offset_m[2]
+
+
+def depth_on_ray(range_m: float, ray: Ray, offset_m: Offset = NO_OFFSET) -> float:
+    """Depth z in metres (along the optical axis) of the point on ``ray`` (a
+    :data:`Ray`) at distance ``range_m`` from the laser's aperture, which sits
+    ``offset_m`` (right, up, forward, m) from the camera's optical centre. With no offset
+    this is ``range_m * cos(angle off axis)``: 0.14 % less than the range at 3 degrees.
+    InputError if the range cannot reach the ray. Inverse of :func:`range_on_ray`."""
+    norm = math.sqrt(sum(c * c for c in ray))
+    direction = tuple(c / norm for c in ray)
+    aperture = _aperture(offset_m)
+    along = sum(d * o for d, o in zip(direction, aperture, strict=True))
+    reach = along * along - sum(o * o for o in aperture) + range_m * range_m
+    if range_m <= 0 or reach < 0:
+        raise InputError(f"range {range_m} m cannot reach the ray from offset {offset_m} m")
+    return (along + math.sqrt(reach)) * direction[2]
+
+
+def range_on_ray(depth_m: float, ray: Ray, offset_m: Offset = NO_OFFSET) -> float:
+    """Distance in metres from the laser's aperture to the point at depth ``depth_m`` on
+    ``ray`` (conventions as :func:`depth_on_ray`, whose inverse it is)."""
+    return math.dist(tuple(c * depth_m for c in ray), _aperture(offset_m))
 
 
 def depth_from_range(
@@ -77,24 +112,10 @@ def depth_from_range(
     cy: float,
     offset_m: Offset = NO_OFFSET,
 ) -> float:
-    """Depth z in metres (along the optical axis) of the laser spot seen at ``pixel``.
-
-    ``pixel`` is (u, v) of the spot in the undistorted image and ``fx``, ``fy``,
-    ``cx``, ``cy`` the pinhole intrinsics in pixels, pixel centres at integers (see the
-    module). ``offset_m`` is the aperture's (right, up, forward) offset from the
-    camera's optical centre. The spot is the point on the pixel's ray at distance
-    ``range_m`` from the aperture. With no offset this is ``range_m * cos(angle off
-    axis)``: 0.14 % less than the range at 3 degrees. InputError if the range cannot
-    reach the ray. Inverse of :func:`range_from_depth`.
-    """
-    x, y, _ = _direction(pixel, fx, fy, cx, cy)
-    norm = math.sqrt(x * x + y * y + 1.0)
-    direction = (x / norm, y / norm, 1.0 / norm)
-    along = sum(d * o for d, o in zip(direction, offset_m, strict=True))
-    reach = along * along - sum(o * o for o in offset_m) + range_m * range_m
-    if range_m <= 0 or reach < 0:
-        raise InputError(f"range {range_m} m cannot reach the ray from offset {offset_m} m")
-    return (along + math.sqrt(reach)) * direction[2]
+    """:func:`depth_on_ray` for ``pixel`` (u, v) of the undistorted image with pinhole
+    intrinsics ``fx``, ``fy``, ``cx``, ``cy`` in pixels, pixel centres at integers (see
+    the module). Inverse of :func:`range_from_depth`."""
+    return depth_on_ray(range_m, pinhole_ray(pixel, fx, fy, cx, cy), offset_m)
 
 
 def range_from_depth(
@@ -107,11 +128,9 @@ def range_from_depth(
     cy: float,
     offset_m: Offset = NO_OFFSET,
 ) -> float:
-    """Distance in metres from the laser aperture to the point at depth ``depth_m`` on
-    ``pixel``'s ray (conventions as :func:`depth_from_range`, whose inverse it is)."""
-    x, y, z = _direction(pixel, fx, fy, cx, cy)
-    point = (x * depth_m, y * depth_m, z * depth_m)
-    return math.dist(point, offset_m)
+    """:func:`range_on_ray` for ``pixel`` of the undistorted image (conventions as
+    :func:`depth_from_range`, whose inverse it is)."""
+    return range_on_ray(depth_m, pinhole_ray(pixel, fx, fy, cx, cy), offset_m)
 
 
 def aperture_offset(profile: RigProfile) -> Offset:
@@ -121,13 +140,3 @@ def aperture_offset(profile: RigProfile) -> Offset:
     if spec is None or spec.offset_m is None:
         return NO_OFFSET
     return spec.offset_m
-
-
-def profile_range_from_depth(
-    profile: RigProfile, image_size: tuple[int, int], depth_m: float,
-    pixel: tuple[float, float],
-) -> float:
-    """:func:`range_from_depth` with a rig profile's left camera and rangefinder offset."""
-    camera = profile.intrinsics(image_size)
-    return range_from_depth(depth_m, pixel, fx=camera.focal_px, fy=camera.focal_px,
-                            cx=camera.cx_px, cy=camera.cy_px, offset_m=aperture_offset(profile))

@@ -30,6 +30,7 @@ from types import TracebackType
 from urllib.parse import parse_qsl, urlsplit
 
 from rigkit.errors import InputError
+from rigkit.rangefinder.defaults import SIM_OPTIONS
 from rigkit.rangefinder.gps import encode_gga
 from rigkit.rangefinder.trupulse import TRUPULSE_UNITS, encode_trupulse_hv, trupulse_sentence
 from rigkit.rangefinder.vectronix import (
@@ -39,37 +40,14 @@ from rigkit.rangefinder.vectronix import (
     vectronix_range_field,
 )
 
-SIM_OPTIONS: dict[str, str] = {
-    "distance": "true slope distance to the target in metres (default 302)",
-    "lat": "gps: latitude in degrees, north positive (default 46.5)",
-    "lon": "gps: longitude in degrees, east positive (default 7.5)",
-    "height": "gps: height above mean sea level in metres (default 500)",
-    "inclination": "trupulse: inclination in degrees, positive up (default 1.2)",
-    "azimuth": "trupulse: azimuth in degrees (default 47.3)",
-    "unit": "trupulse: unit the device sends, M, F or Y (default M)",
-    "interval": "trupulse: seconds between the simulated user's shots, 0 = only on $GO; "
-    "gps: seconds between fixes (default 1)",
-    "noise": "1-sigma range noise in metres; gps: 1-sigma horizontal position noise, m "
-    "(default 0)",
-    "low_quality": "trupulse: probability a shot is flagged low-quality (default 0)",
-    "miss": "probability a shot finds no target (default 0)",
-    "other": "trupulse, gps: probability of another sentence before a shot or fix "
-    "(default 0)",
-    "nofix": "gps: GGA sentences without a fix before the first fix (default 0)",
-    "garbage": "probability of line noise and a cut-off sentence before a frame (default 0)",
-    "bad_checksum": "probability a frame is sent with a wrong checksum (default 0)",
-    "silent": "1 = the device never sends anything (default 0)",
-    "disconnect_after": "pull the cable halfway through frame N+1 (default: never)",
-    "seed": "random seed (default 0)",
-}
-"""Simulator URL options (``sim://<device>?key=value&...``) and what they do."""
-
+GEOID_LIMIT_M = 150.0
+"""The geoid lies within about 110 m of the WGS 84 ellipsoid everywhere."""
 _COMMON = ("noise", "garbage", "bad_checksum", "silent", "disconnect_after", "seed")
 _APPLIES = {
     "trupulse": (*_COMMON, "distance", "miss", "inclination", "azimuth", "unit", "interval",
                  "low_quality", "other"),
     "vectronix": (*_COMMON, "distance", "miss"),
-    "gps": (*_COMMON, "lat", "lon", "height", "interval", "other", "nofix"),
+    "gps": (*_COMMON, "lat", "lon", "height", "geoid", "interval", "other", "nofix"),
 }
 """The options each simulated device takes; the others must keep their defaults."""
 # Bytes that delimit frames in either protocol; simulated noise avoids them so
@@ -90,6 +68,7 @@ class SimConfig:
     lat: float = 46.5
     lon: float = 7.5
     height: float = 500.0
+    geoid: float = 47.3
     nofix: int = 0
     inclination: float = 1.2
     azimuth: float = 47.3
@@ -126,6 +105,9 @@ class SimConfig:
             raise InputError(
                 f"simulator disconnect_after must be >= 0, got {self.disconnect_after}"
             )
+        if not (math.isfinite(self.geoid) and abs(self.geoid) <= GEOID_LIMIT_M):
+            raise InputError(f"simulator geoid must be within +-{GEOID_LIMIT_M:g} m (the "
+                             f"geoid's height above the ellipsoid), got {self.geoid}")
         if not (-90 <= self.lat <= 90 and -180 <= self.lon <= 180 and self.nofix >= 0):
             raise InputError(f"simulator lat {self.lat}, lon {self.lon} or nofix "
                              f"{self.nofix} out of range")
@@ -343,8 +325,8 @@ class SimulatedVectronix(SimulatedDevice):
 
 class SimulatedGps(SimulatedDevice):
     """A GPS receiver: a GGA sentence every ``interval`` seconds, the first ``nofix``
-    without a fix, then at ``lat``/``lon``/``height`` with Gaussian horizontal noise of
-    ``noise`` metres per axis."""
+    without a fix, then at ``lat``/``lon``/``height`` (geoid separation ``geoid``) with
+    Gaussian horizontal noise of ``noise`` metres per axis."""
 
     def __init__(self, config: SimConfig, now: float) -> None:
         super().__init__(config, now)
@@ -369,7 +351,7 @@ class SimulatedGps(SimulatedDevice):
         lon = cfg.lon + east / (metres_per_deg * max(math.cos(math.radians(cfg.lat)), 1e-6))
         quality = 0 if self.frames_sent < cfg.nofix else 1
         self.send(encode_gga(lat, lon, cfg.height, utc_s=now, quality=quality,
-                             satellites=9 if quality else 3))
+                             satellites=9 if quality else 3, geoid_separation_m=cfg.geoid))
 
 
 def make_device(config: SimConfig, now: float) -> SimulatedDevice:

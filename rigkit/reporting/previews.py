@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from rigkit.capture.comparisons import Comparison
-from rigkit.capture.session import Target
+from rigkit.capture.model import Target
 
 PREVIEW_WIDTH = 1600
 MOVED_TINT = (128, 0, 128)  # BGR added to half the grey where the views disagree

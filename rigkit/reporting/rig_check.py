@@ -7,6 +7,7 @@ import textwrap
 from collections.abc import Sequence
 
 from rigkit.core.tables import render_table
+from rigkit.reporting.scale import scale_source
 from rigkit.rig.budget import RELATIVE_ROTATION_DEG, ErrorModel, corner_distortion
 from rigkit.rig.check import RigCheck
 from rigkit.rig.formulas import affine_residual_px
@@ -46,6 +47,7 @@ def _summary(check: RigCheck) -> str:
             f"C_lr {lr.value_m:g} +- {lr.tolerance_m:g} m, "
             f"C_lb {lb.value_m:g} +- {lb.tolerance_m:g} m (along the viewing axis)",
         ),
+        _field("scale", scale_source(profile)),
         _field("lens", _lens(profile)),
         _field("back camera", _back_offset(check)),
         _field("rangefinder", _rangefinder(profile)),
@@ -207,6 +209,10 @@ def _budget_table(check: RigCheck) -> str:
         f"corner, views turned by {RELATIVE_ROTATION_DEG:g} deg.\n"
         f"  offset: {_offset_basis(model)}"
     )
+    if model.anchor_m is not None:
+        note += (f"\n  laser-calibrated: f and C_lr errors only stretch depth about the "
+                 f"{model.anchor_m:.0f} m the calibration\n  pinned the scale at "
+                 "(dz = z e |1 - z / anchor|); C_lb's tolerance is the fit's.")
     title = "depth error budget, metres (source and its size in the header)"
     return "\n".join([title, _table(header, rows), *reach, note])
 
@@ -228,6 +234,8 @@ def _reach_text(check: RigCheck, range_m: float | None) -> str:
         return "never (no range-dependent error assumed)"
     if range_m == 0.0:
         fixed = 100 * check.model.constant_term
+        if check.model.anchor_m is not None:
+            return f"exceeded at every range (the calibrated C_lb alone gives {fixed:.2f} %)"
         return f"exceeded at every range (f, C_lr and C_lb tolerances alone give {fixed:.2f} %)"
     last = check.budget[-1].range_m
     beyond = f" (beyond {last:g} m)" if range_m > last else ""

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,13 +24,14 @@ from rigkit.capture.comparisons import (
     STATUS_OK,
     Comparison,
     csv_text,
-    latest_run,
     read_rows,
 )
+from rigkit.capture.results import RESULTS_DIR
 from rigkit.core.files import write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
-from rigkit.reporting.verdict import row_label
+from rigkit.reporting.scale import current_rows
+from rigkit.reporting.verdict import CALIBRATED_LABEL, row_label
 
 #: Bucket edges by laser range, metres: <100, 100-200, ..., 400-500, >=500.
 DEFAULT_EDGES_M: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -48,7 +49,9 @@ def collect(session_dirs: Iterable[Path], all_runs: bool = False,
     """The comparison rows of the given session folders, in the order given.
 
     Each folder must hold ``comparisons.csv`` at its top level. By default only each
-    session's newest run is kept; ``all_runs`` keeps every run. A folder given twice is
+    session's current run is kept, the one in its ``results/``
+    (:func:`rigkit.reporting.scale.current_rows`: not the log's greatest run id, which a
+    clock set back makes an old run's); ``all_runs`` keeps every run. A folder given twice is
     read once. InputError (naming the folder or file) for a missing folder, a folder
     without a log, or a file that is no log; damaged rows are skipped and said in
     ``torn`` (:func:`rigkit.capture.comparisons.read_rows`).
@@ -71,8 +74,10 @@ def _session_rows(folder: Path, all_runs: bool, torn: list[str] | None
         raise InputError(f"{folder}: no such session folder")
     if not folder.is_dir():
         raise InputError(f"{folder}: not a session folder (give the folder that holds {LOG_NAME})")
+    if not all_runs and (folder / RESULTS_DIR / LOG_NAME).is_file():
+        return current_rows(folder, torn)  # the run results/ holds, whatever the log's ids
     rows = read_rows(folder / LOG_NAME, torn)
-    return rows if all_runs else latest_run(rows)
+    return rows if all_runs else current_rows(folder, torn)
 
 
 # --------------------------------------------------------------------------- statistics
@@ -202,8 +207,10 @@ def _several_runs(rows: Sequence[Comparison]) -> bool:
     return any(len(ids) > 1 for ids in runs.values())
 
 
-def format_rows(rows: Sequence[Comparison]) -> str:
-    """One line per comparison; a run column appears when a session has several runs."""
+def format_rows(rows: Sequence[Comparison], calibrated: Collection[tuple[str, str]] = ()
+                ) -> str:
+    """One line per comparison; a run column appears when a session has several runs;
+    the rows whose (session, target) ``calibrated`` the rig say so."""
     with_run = _several_runs(rows)
     header = ["session", *(["run"] if with_run else []), "target"]
     left = len(header)
@@ -211,6 +218,8 @@ def format_rows(rows: Sequence[Comparison]) -> str:
     lines = []
     for r in rows:
         status = row_label(r, TIGHT_PCT)
+        if (r.session, r.target) in calibrated:
+            status += f" ({CALIBRATED_LABEL})"
         lines.append(
             [
                 r.session,
@@ -289,15 +298,21 @@ def _outlier_lines(rows: Sequence[Comparison]) -> list[str]:
     ]
 
 
-def format_text(rows: Sequence[Comparison], summary: Summary) -> str:
-    """The full text report: every comparison, the summary, and the per-bucket table."""
+def format_text(rows: Sequence[Comparison], summary: Summary,
+                calibrated: Collection[tuple[str, str]] = ()) -> str:
+    """The full text report: every comparison, the summary, and the per-bucket table;
+    ``calibrated``: the (session, target) rows that calibrated their rig, marked and left
+    out of ``summary`` by the caller (they cannot check the scale they made)."""
     sessions = list(dict.fromkeys(r.session for r in rows))
+    used = [f"{r.session}/{r.target}" for r in rows if (r.session, r.target) in calibrated]
     parts = [
         f"rangefinder comparisons: {len(rows)} rows from {len(sessions)} session(s)"
         + (f" ({', '.join(sessions)})" if sessions else ""),
         "error = estimate - laser (positive: estimate too far); % of the laser range",
         "",
-        format_rows(rows),
+        format_rows(rows, calibrated),
+        *([f"calibrated the rig, so not counted below (they cannot check it): "
+           f"{', '.join(used)}"] if used else []),
         "",
         "summary",
         format_stats(summary.overall),

@@ -8,17 +8,28 @@ still inside the rig's own 2-sigma at that range (the error budget of
 widen its own tolerance): "1.43 %: outside 1 %, inside the 2σ of ±1.6 %". The session is
 done only when every target is within the goal and nothing the run found (the offset's
 share of depth, a burst too short for the air) says the capture misses it.
+
+A target that calibrated the rig's scale (``rigkit rig calibrate``; the profile's
+provenance names it) is shown as such and never counted: it cannot prove the scale it
+made. The verdict counts the independent targets only, and says where the scale came
+from (:func:`rigkit.reporting.scale.scale_source`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING, Comparison
-from rigkit.capture.session import run_metadata
+from rigkit.capture.model import Session
+from rigkit.capture.results import RunRecord
+from rigkit.reporting.scale import (
+    RunReference,
+    calibration_targets,
+    run_scale_note,
+    scale_source,
+)
 from rigkit.rig.budget import ErrorModel, budget_row
 from rigkit.rig.profile import RigProfile
 
@@ -26,18 +37,22 @@ GOAL_PCT = 1.0
 """The agreement wanted between the depth estimate and the laser, % of the range."""
 BUDGET_SIGMAS = 2.0
 """How many of the rig's expected one-sigma errors a target's 2σ note spans."""
+CALIBRATED_LABEL = "calibrated the rig: not a check"
+"""What a target that calibrated the rig's scale says beside its own words."""
 
 
 @dataclass(frozen=True)
 class TargetVerdict:
     """One target: ``ok`` (within the goal), the goal and the rig's 2σ at the estimate
-    (% of the range), and ``label``, the words every front end shows for it."""
+    (% of the range), and ``label``, the words every front end shows for it;
+    ``calibrated``: it calibrated the rig's scale, so it is not counted."""
 
     target: str
     ok: bool
     goal_pct: float
     two_sigma_pct: float
     label: str
+    calibrated: bool = False
 
 
 @dataclass(frozen=True)
@@ -45,13 +60,17 @@ class Verdict:
     """The session's verdict: ``ok`` when every target is within the goal and no
     shortfall is reported; ``headline`` is one line ("6/6 targets within 1 %: done"),
     ``advice`` what to capture again (may be empty); ``scale`` what the targets say of
-    the rig's scale (:func:`rigkit.reporting.scale.run_scale_note`; "" where unknown)."""
+    the rig's scale (:func:`rigkit.reporting.scale.run_scale_note`; "" where unknown);
+    ``source`` where the scale came from (:func:`rigkit.reporting.scale.scale_source`);
+    ``shortfalls`` what the run said makes it miss the goal."""
 
     ok: bool
     headline: str
     targets: tuple[TargetVerdict, ...]
     advice: tuple[str, ...]
     scale: str = ""
+    source: str = ""
+    shortfalls: tuple[str, ...] = ()
 
 
 def row_label(row: Comparison, goal_pct: float = GOAL_PCT) -> str:
@@ -76,38 +95,70 @@ def two_sigma_pct(profile: RigProfile, range_m: float, frames: int = 1) -> float
 
 
 def judge_target(row: Comparison, profile: RigProfile, goal_pct: float = GOAL_PCT,
-                 frames: int = 1) -> TargetVerdict:
-    """One comparison row against the goal, with the rig's 2σ at the estimate."""
+                 frames: int = 1, calibrated: bool = False) -> TargetVerdict:
+    """One comparison row against the goal, with the rig's 2σ at the estimate;
+    ``calibrated``: the row's target calibrated the rig (said, and not a check)."""
     sigma2 = two_sigma_pct(profile, row.estimate_range_m, frames)
     label = row_label(row, goal_pct)
     ok = label.startswith("within")
     if not ok and math.isfinite(row.error_pct) and math.isfinite(sigma2):
         inside = "inside" if abs(row.error_pct) <= sigma2 else "outside"
         label += f", {inside} the 2σ of ±{sigma2:.1f} %"
-    return TargetVerdict(row.target, ok, goal_pct, sigma2, label)
+    if calibrated:
+        label += f" ({CALIBRATED_LABEL})"
+    return TargetVerdict(row.target, ok, goal_pct, sigma2, label, calibrated)
 
 
 def judge(rows: Sequence[Comparison], profile: RigProfile, goal_pct: float = GOAL_PCT,
-          frames: int = 1, shortfalls: Sequence[str] = (), scale: str = "") -> Verdict:
+          frames: int = 1, shortfalls: Sequence[str] = (), scale: str = "",
+          calibrated: Collection[str] = (), source: str = "") -> Verdict:
     """The verdict on one run's comparison rows (one per target), captured with
     ``frames`` per position; ``shortfalls``: what the run said makes it miss the goal
     (:attr:`rigkit.batch.depthrun.DepthRun.shortfalls`); ``scale``: what the targets
-    say of the rig's scale, shown with it."""
+    say of the rig's scale, and ``source`` where it came from, shown with it;
+    ``calibrated``: the targets that calibrated the rig, shown and not counted."""
     if not rows:
         return Verdict(False, "no laser targets: nothing to check the depth against", (),
-                       ("mark at least one target and fire the laser at it",))
-    targets = tuple(judge_target(row, profile, goal_pct, frames) for row in rows)
-    passed = sum(t.ok for t in targets)
-    done = passed == len(targets) and not shortfalls
+                       ("mark at least one target and fire the laser at it",), scale, source,
+                       tuple(shortfalls))
+    targets = tuple(judge_target(row, profile, goal_pct, frames, row.target in calibrated)
+                    for row in rows)
+    counted = [t for t in targets if not t.calibrated]
+    passed = sum(t.ok for t in counted)
+    done = bool(counted) and passed == len(counted) and not shortfalls
     verdict = "done" if done else "capture again"
-    if passed == len(targets) and shortfalls:
+    if counted and passed == len(counted) and shortfalls:
         verdict = "capture again: the run says it misses the goal (below)"
-    headline = f"{passed}/{len(targets)} targets within {goal_pct:g} %: {verdict}"
-    return Verdict(done, headline, targets, _advice(rows, targets), scale)
+    used = len(targets) - len(counted)
+    if not counted:
+        headline = (f"no independent target: all {used} calibrated the rig and cannot check "
+                    "it: mark a target the calibration did not use")
+    else:
+        more = f" ({used} more calibrated the rig: not counted)" if used else ""
+        headline = (f"{passed}/{len(counted)} {'independent ' if used else ''}targets within "
+                    f"{goal_pct:g} %{more}: {verdict}")
+    return Verdict(done, headline, targets, _advice(rows, targets), scale, source,
+                   tuple(shortfalls))
+
+
+def run_verdict(session: Session, rows: Sequence[Comparison], profile: RigProfile,
+                record: RunRecord, goal_pct: float = GOAL_PCT) -> Verdict:
+    """The verdict on a session's run (:func:`judge`) from its comparison rows, the rig
+    it ran with and its record: the frames it stacked, what it said falls short, what
+    its targets say of the scale, the targets that calibrated the rig (shown, not
+    counted) and where the scale came from. ``rigkit process`` returns it; the field TUI
+    shows the one its run returned, or this on reopening a session (the same function,
+    the same words)."""
+    calibrated = calibration_targets(profile, session)
+    scale = run_scale_note(rows, profile, RunReference.of(record), calibrated)
+    return judge(rows, profile, goal_pct, frames=record.burst_length,
+                 shortfalls=record.shortfalls, scale=scale, calibrated=calibrated,
+                 source=scale_source(profile))
 
 
 def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tuple[str, ...]:
-    failed = [(r, t) for r, t in zip(rows, targets, strict=True) if not t.ok]
+    failed = [(r, t) for r, t in zip(rows, targets, strict=True)
+              if not t.ok and not t.calibrated]
     advice = [f"{t.target}: {t.label}" for _, t in failed]
     if any(r.status == STATUS_NO_READING for r, _ in failed):
         advice.append("fire the laser at the targets without a reading")
@@ -121,9 +172,3 @@ def _advice(rows: Sequence[Comparison], targets: Sequence[TargetVerdict]) -> tup
         advice.append("check where the laser hit those targets and fire at them again")
     return tuple(advice)
 
-
-def run_shortfalls(session_path: Path) -> tuple[str, ...]:
-    """What the session's latest run said makes it miss the goal (``shortfalls`` in
-    ``results/depth.json``); none without a readable run."""
-    found = (run_metadata(session_path) or {}).get("shortfalls")
-    return tuple(str(s) for s in found) if isinstance(found, list) else ()

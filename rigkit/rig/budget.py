@@ -22,6 +22,12 @@ enters through the anchor depth z = C_lb / (m_l / m_b - 1), so its relative erro
 carries over to z. The sources are independent, so the total is their root-sum-square.
 This is the plain-stereo view: where the back camera's anchor lies at the same depth,
 errors in f and C_lr cancel there (docs/rig-profiles.md, "Reading the error budget").
+
+A profile whose scale the lasers calibrated (``rigkit rig calibrate``) was measured
+through that anchor: its C_lb tolerance is the fit's at the depth the calibration pinned
+the scale at (``anchor_m``), and an error e in f * C_lr only stretches depth about it,
+dz = z * e * |1 - z / anchor| (the calibration's model, :mod:`rigkit.rig.calibration`),
+so the budget takes the calibrated tolerances that way.
 """
 
 from __future__ import annotations
@@ -32,18 +38,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigkit.geometry import distort
-from rigkit.pipeline.settings import PipelineSettings
 from rigkit.rig.bursts import (
     OFFSET_FLOOR_PX,
     default_shimmer,
     expected_offset_error_px,
     reference_scale,
 )
+from rigkit.rig.defaults import DISPARITY_ERROR_PX
 from rigkit.rig.formulas import depth_error_from_disparity, depth_error_from_relative, disparity_px
 from rigkit.rig.profile import Baseline, RigProfile
 
-DISPARITY_ERROR_PX = PipelineSettings().stereo_noise_px
-"""Default disparity (matching) error, pixels: the pipeline's own figure."""
 BUDGET_RANGES_M = (100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0)
 TARGET_FRACTIONS = (0.01, 0.03)
 """Relative depth errors whose onset range the check reports (1 % and 3 %)."""
@@ -102,6 +106,9 @@ class ErrorModel:
     shimmer_px: float | None = None
     shimmer_corr_px: float | None = None
     """What ``offset_error_px`` was derived from (None: it was given)."""
+    anchor_m: float | None = None
+    """The depth a laser calibration pinned the scale at, m: f's and C_lr's errors
+    stretch depth about it (None: a taped profile, the plain-stereo view)."""
 
     @classmethod
     def from_profile(
@@ -140,6 +147,7 @@ class ErrorModel:
             frames=frames if derived else None,
             shimmer_px=shimmer_px if derived else None,
             shimmer_corr_px=shimmer_corr_px if derived else None,
+            anchor_m=profile.calibration.reference_depth_m if profile.calibration else None,
         )
 
     @property
@@ -150,12 +158,21 @@ class ErrorModel:
 
     @property
     def constant_term(self) -> float:
-        """b in total(z) = z * sqrt((a z)**2 + b**2): f, C_lr and C_lb tolerances."""
-        return math.hypot(
-            self.focal_tolerance,
-            self.baseline_lr.relative_tolerance,
-            self.baseline_lb.relative_tolerance,
-        )
+        """b in total(z) = z * sqrt((a z)**2 + b**2): f, C_lr and C_lb tolerances (at the
+        anchor of a calibrated profile, C_lb's alone)."""
+        if self.anchor_m is not None:
+            return self.baseline_lb.relative_tolerance
+        return math.hypot(self.shape_tolerance, self.baseline_lb.relative_tolerance)
+
+    @property
+    def shape_tolerance(self) -> float:
+        """The relative tolerance of f * C_lr: f's and C_lr's together."""
+        return math.hypot(self.focal_tolerance, self.baseline_lr.relative_tolerance)
+
+    def stretch(self, range_m: float) -> float:
+        """What an error in f or C_lr does at ``range_m`` as a share of its plain-stereo
+        z * e: 1, or |1 - z / anchor| for a calibrated profile."""
+        return 1.0 if self.anchor_m is None else abs(1.0 - range_m / self.anchor_m)
 
 
 @dataclass(frozen=True)
@@ -198,9 +215,11 @@ def budget_row(model: ErrorModel, range_m: float) -> BudgetRow:
         from_disparity_m=depth_error_from_disparity(
             range_m, model.focal_px, lr, model.disparity_error_px
         ),
-        from_baseline_lr_m=depth_error_from_relative(range_m, model.baseline_lr.relative_tolerance),
+        from_baseline_lr_m=depth_error_from_relative(
+            range_m, model.baseline_lr.relative_tolerance * model.stretch(range_m)),
         from_baseline_lb_m=depth_error_from_relative(range_m, model.baseline_lb.relative_tolerance),
-        from_focal_m=depth_error_from_relative(range_m, model.focal_tolerance),
+        from_focal_m=depth_error_from_relative(
+            range_m, model.focal_tolerance * model.stretch(range_m)),
         from_offset_m=depth_error_from_disparity(
             range_m, model.focal_px, lr, model.offset_error_px
         ),
@@ -213,10 +232,28 @@ def range_reaching(model: ErrorModel, fraction: float) -> float | None:
 
     total / z = sqrt((a z)**2 + b**2), so z = sqrt(fraction**2 - b**2) / a. Returns 0.0
     when the range-independent part b alone reaches it, None when it is never reached.
+    For a calibrated profile, total / z = sqrt((a z)**2 + b**2 + (e (1 - z / anchor))**2)
+    with e the f * C_lr tolerance: the range beyond the anchor where it reaches
+    ``fraction`` (0.0 where it does at every range).
     """
     a, b = model.quadratic_term, model.constant_term
+    if model.anchor_m is not None:
+        return _anchored_reach(a, b, model.shape_tolerance, model.anchor_m, fraction)
     if b >= fraction:
         return 0.0
     if a == 0.0:
         return None
     return math.sqrt(fraction**2 - b**2) / a
+
+
+def _anchored_reach(a: float, b: float, e: float, anchor: float, fraction: float) -> float:
+    """The larger root of (a z)**2 + b**2 + e**2 (1 - z/anchor)**2 = fraction**2, 0.0 where
+    there is none beyond 0 (the fraction reached at every range)."""
+    quad = a * a + (e / anchor) ** 2
+    lin = -2 * e * e / anchor
+    const = b * b + e * e - fraction**2
+    disc = lin * lin - 4 * quad * const
+    if disc < 0:
+        return 0.0
+    far = (-lin + math.sqrt(disc)) / (2 * quad)
+    return far if far > 0 else 0.0

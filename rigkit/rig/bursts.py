@@ -14,6 +14,7 @@ import math
 from rigkit.errors import InputError
 from rigkit.pipeline.estimate import OFFSET_WARNING_FRACTION
 from rigkit.pipeline.shimmer import Shimmer
+from rigkit.rig.defaults import SHIMMER_PX
 from rigkit.rig.formulas import disparity_px
 from rigkit.rig.profile import RigProfile
 
@@ -30,9 +31,6 @@ scenes at 0.3 px the offset was off by 0.92 px RMS (0.90 px since), 0.84 px of i
 beyond the floor.
 Shimmer moves ~50 px patches together, so matching more points does not lower it;
 only more frames do, by ~1/sqrt(frames) (docs/pipeline.md, "Field conditions")."""
-SHIMMER_PX = 0.3
-"""Default heat shimmer, px RMS per frame: moderate turbulence over 300 m at ~19 urad
-per pixel (docs/field.md)."""
 SHIMMER_CORR = 0.01
 """Correlation length of the shimmer ``OFFSET_PER_SHIMMER_PX`` was measured under, as a
 fraction of the image width (46 px at 4608; the Gaussian sigma of
@@ -109,9 +107,8 @@ def burst_advice(profile: RigProfile, shimmer: Shimmer, where: str, range_m: flo
     one computation of the burst to take, on site (at the planned range) and after
     processing (at the measured median depth). The burst comes from the figures as the
     line shows them (the RMS to 0.01 px, the correlation length to two figures, the
-    range to the metre), so one shown
-    measurement always gets one answer: 0.0849 and 0.0751 px, both "0.08 px", once
-    gave 2 frames and then 1."""
+    range to the metre), so one shown measurement always gets one answer: 0.0849 and
+    0.0751 px, both "0.08 px", once gave 2 frames and then 1."""
     rms, range_m = round(shimmer.rms_px, 2), float(round(range_m))
     corr = float(f"{shimmer.corr_px:.2g}") if math.isfinite(shimmer.corr_px) else None
     patches = "" if corr is None else f" in patches of ~{corr:g} px"

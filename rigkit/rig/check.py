@@ -12,7 +12,6 @@ from typing import Any
 from rigkit.errors import InputError
 from rigkit.rig.budget import (
     BUDGET_RANGES_M,
-    DISPARITY_ERROR_PX,
     RELATIVE_ROTATION_DEG,
     TARGET_FRACTIONS,
     BudgetRow,
@@ -21,6 +20,7 @@ from rigkit.rig.budget import (
     corner_distortion,
     range_reaching,
 )
+from rigkit.rig.defaults import DISPARITY_ERROR_PX
 from rigkit.rig.findings import Finding
 from rigkit.rig.formulas import (
     affine_residual_px,
@@ -211,9 +211,11 @@ def _goal_warning(model: ErrorModel) -> list[Finding]:
     if range_reaching(model, goal) != 0.0:
         return []
     fixed = 100 * model.constant_term
+    why = (f"the calibrated C_lb tolerance ({fixed:.2f} %) with the range's own errors "
+           "leaves no range within it" if model.anchor_m else
+           f"the f, C_lr and C_lb tolerances alone give {fixed:.2f} %")
     return [Finding(
-        "budget", f"{100 * goal:g} % depth error is out of reach at every range: the f, "
-        f"C_lr and C_lb tolerances alone give {fixed:.2f} %",
+        "budget", f"{100 * goal:g} % depth error is out of reach at every range: {why}",
         redo="measure the baselines to better than their tolerances, or calibrate the "
         "rig's scale from a session's laser targets (rigkit rig calibrate)")]
 

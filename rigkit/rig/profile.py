@@ -38,6 +38,8 @@ from rigkit.geometry import Distortion
 from rigkit.pipeline import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings, setting_names, setting_type
 from rigkit.rig.camera import CameraSpec, Intrinsics, camera_to_dict, intrinsics, read_camera
+from rigkit.rig.defaults import MAX_RANGE_M
+from rigkit.rig.provenance import Calibration, calibration_to_dict, read_calibration
 
 PROFILE_VERSION = 1
 CAMERA_ROLES = ("left", "right", "back")
@@ -46,7 +48,6 @@ FOCAL_AGREEMENT = 0.001
 _MAX_BASELINE_M = 100.0
 _MIN_BASELINE_M = 0.01
 _MAX_OFFSET_M = 10.0
-MAX_RANGE_M = 100_000.0
 _MAX_BAUD = 4_000_000
 _PROTOCOL_PATTERN = re.compile(r"[a-z0-9][a-z0-9_-]*")
 AZIMUTH_REFERENCES = ("true", "magnetic")
@@ -123,6 +124,8 @@ class RigProfile:
     one_camera: bool = False
     """One camera moved between the three positions (``one_camera: true``): the views
     share its principal point. False: three cameras, each with its own."""
+    calibration: Calibration | None = field(default=None, compare=False, hash=False)
+    """Where the scale comes from when the lasers calibrated it (None: taped)."""
 
     @property
     def distortion(self) -> Distortion:
@@ -223,7 +226,7 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
         required=("version", "name", "baselines"),
         optional=(
             "camera", "cameras", "back_offset", "rangefinder", "notes", "nominal_range_m",
-            "pipeline", "one_camera",
+            "pipeline", "one_camera", "calibration",
         ),
     )
     _check_version(keys["version"], top.child("version"))
@@ -247,6 +250,7 @@ def rig_from_data(data: Any, source: Path, key_prefix: str = "") -> RigProfile:
         source=path,
         pipeline=top.optional(keys, "pipeline", _pipeline) or {},
         one_camera=one_camera,
+        calibration=top.optional(keys, "calibration", read_calibration),
     )
 
 
@@ -420,6 +424,8 @@ def rig_to_dict(profile: RigProfile) -> dict[str, Any]:
         data["pipeline"] = dict(profile.pipeline)
     if profile.one_camera:
         data["one_camera"] = True
+    if profile.calibration is not None:
+        data["calibration"] = calibration_to_dict(profile.calibration)
     return data
 
 

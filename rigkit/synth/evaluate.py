@@ -35,7 +35,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rigkit.capture import RESULTS_DIR
+from rigkit.capture.results import RunFiles, session_comparisons
 from rigkit.core.files import write_text
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
@@ -227,7 +227,7 @@ def estimate_candidates(depth_dir: Path | None, scene_dir: Path) -> list[Path]:
     ``DEPTH_DIR/<scene>/depth.npy``; without ``depth_dir``, the scene's own
     ``results/depth.npy`` (a processed synthetic session)."""
     if depth_dir is None:
-        return [scene_dir / RESULTS_DIR / "depth.npy"]
+        return [RunFiles.of_session(scene_dir).depth]
     name = scene_dir.name
     return [depth_dir / f"{name}.npy", depth_dir / f"{name}-depth.npy",
             depth_dir / name / "depth.npy"]
@@ -381,7 +381,7 @@ def goal_line(m: Metrics, scene_dir: Path) -> tuple[bool, str]:
         return False, f"{m.scene}: goal missed: {m.reason}"
     said = [f"{100 * m.under_1:.1f} % of pixels under 1 %", f"bias {100 * m.median_bias:+.2f} %"]
     missed = m.under_1 < GOAL_UNDER_1 or abs(m.median_bias) > GOAL_BIAS
-    table = scene_dir / RESULTS_DIR / "comparisons.csv"
+    table = session_comparisons(scene_dir)
     if table.is_file():
         rows = read_rows(table)
         within = sum(math.isfinite(r.error_pct) and abs(r.error_pct) <= GOAL_TARGET_PCT

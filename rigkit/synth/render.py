@@ -26,16 +26,18 @@ import numpy as np
 
 from rigkit.geometry import Camera, euler_to_matrix, undistort
 from rigkit.synth.facades import FacadeLook, facade_albedo
+from rigkit.synth.ground import Ground
 from rigkit.synth.movers import Paint, painted
 from rigkit.synth.scene import Scene
 from rigkit.synth.shadows import shadow_factor
-from rigkit.synth.shapes import FACE_SHIFT, Box, Sphere, TextureMap
+from rigkit.synth.shapes import FACE_SHIFT, Box, Sphere, Terrain, TextureMap
 from rigkit.synth.shimmer import displacement_field
 
 TERRAIN = 0
 CHUNK_ROWS = 192
 COARSE = 8  # coarse-grid step (px) that seeds the terrain iteration
 PSF_SIGMA_PX = 0.5
+GROUND_START = 0.3  # a ground's coarse march starts this fraction of its near range out
 
 
 @cache
@@ -83,6 +85,7 @@ def sample_texture(tex: TextureMap, s: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _terrain_t(scene: Scene, o: np.ndarray, d: np.ndarray, t: np.ndarray, iters: int) -> np.ndarray:
     """Solve o_z + t d_z = g(o_x + t d_x, o_y + t d_y) by fixed-point iteration."""
+    assert isinstance(scene.terrain, Terrain)
     g = scene.terrain.z
     for _ in range(iters):
         t = (g(o[0] + t * d[..., 0], o[1] + t * d[..., 1]) - o[2]) / d[..., 2]
@@ -90,15 +93,52 @@ def _terrain_t(scene: Scene, o: np.ndarray, d: np.ndarray, t: np.ndarray, iters:
 
 
 def terrain_seed(scene: Scene, cam: Camera) -> np.ndarray:
-    """Terrain ray parameter on a coarse pixel grid, upsampled to full size (float64)."""
+    """Terrain ray parameter on a coarse pixel grid, upsampled to full size (float64);
+    for a :class:`Ground`, a start before each pixel's first hit (:func:`ground_seed`)."""
     hc, wc = -(-cam.height // COARSE), -(-cam.width // COARSE)
     uc = (np.arange(wc) + 0.5) * COARSE - 0.5
     vc = (np.arange(hc) + 0.5) * COARSE - 0.5
     d = cam.rays(*np.meshgrid(uc, vc))
+    if isinstance(scene.terrain, Ground):
+        return ground_seed(scene.terrain, cam, d)
     t0 = np.full(d.shape[:2], scene.terrain.base - cam.C[2])
     tc = _terrain_t(scene, cam.C, d, t0, iters=12)
     full = cv2.resize(tc, (wc * COARSE, hc * COARSE), interpolation=cv2.INTER_LINEAR)
     return full[: cam.height, : cam.width]
+
+
+def ground_seed(ground: Ground, cam: Camera, d: np.ndarray) -> np.ndarray:
+    """(H, W) float64: for every pixel of ``cam``, a ray parameter before its first hit
+    with ``ground`` (:meth:`Ground.refine` finishes from there): the least exact hit
+    among the coarse rays ``d`` (hc, wc, 3) around it (3 x 3), less 1 %; inf where none
+    of them hits (the ground turns over metres, three coarse cells span centimetres: no
+    hill peeks up between rays that all pass over it)."""
+    start = np.full(d.shape[:2], GROUND_START * ground.near)
+    tc = ground.hits(cam.C, d, start)
+    least = cv2.erode(np.where(np.isfinite(tc), tc, 1e12), np.ones((3, 3), np.uint8))
+    least = np.where(least < 1e12, 0.99 * least, np.inf)
+    full = np.repeat(np.repeat(least, COARSE, axis=0), COARSE, axis=1)
+    return full[: cam.height, : cam.width]
+
+
+def _ground_layer(ground: Ground, o: np.ndarray, d: np.ndarray, seed: np.ndarray
+                  ) -> tuple[np.ndarray, ...]:
+    """The ground's first hits ``t`` of rays ``d`` (..., 3) from ``o`` searched from
+    ``seed``, its normals, the fine texture's and the fields' coordinates there."""
+    t = ground.refine(o, d, seed)
+    X = o + np.where(np.isfinite(t), t, 0.0)[..., None] * d
+    st, fields = ground.surface_coords(X)
+    return t, ground.normal(X), st, fields
+
+
+def _fields(scene: Scene, xz: np.ndarray) -> np.ndarray:
+    """(N,) float32 brightness factor of the ground's fields and patches at ground
+    coordinates ``xz`` (N, 2), m: a second texture at a coarse scale, foreshortened."""
+    ground = scene.terrain
+    assert isinstance(ground, Ground)
+    tex = scene.textures[ground.patches]
+    assert isinstance(tex, TextureMap)
+    return (0.55 + 0.9 * sample_texture(tex, xz[:, 0], xz[:, 1])).astype(np.float32)
 
 
 def box_hits(box: Box, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -271,12 +311,16 @@ def render_layers(
         r1 = min(r0 + CHUNK_ROWS, H)
         u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(r0, r1, dtype=np.float64))
         d = cam.rays(u, v)
-        t = _terrain_t(scene, cam.C, d, seed_t[r0:r1].copy(), iters=3)
-        x, y = cam.C[0] + t * d[..., 0], cam.C[1] + t * d[..., 1]
-        t = np.where(scene.terrain.above_skyline(x, y) | void, np.inf, t)
-        gx, gy = scene.terrain.gradient(x, y)
-        normal = np.stack([gx, gy, -np.ones_like(gx)], axis=-1)
-        st = np.stack([x, y], axis=-1)
+        if isinstance(scene.terrain, Ground):
+            t, normal, st, fields = _ground_layer(scene.terrain, cam.C, d, seed_t[r0:r1])
+        else:
+            t = _terrain_t(scene, cam.C, d, seed_t[r0:r1].copy(), iters=3)
+            x, y = cam.C[0] + t * d[..., 0], cam.C[1] + t * d[..., 1]
+            t = np.where(scene.terrain.above_skyline(x, y) | void, np.inf, t)
+            gx, gy = scene.terrain.gradient(x, y)
+            normal = np.stack([gx, gy, -np.ones_like(gx)], axis=-1)
+            st = np.stack([x, y], axis=-1)
+            fields = None
         sid = np.zeros(t.shape, np.int16)
         for obj, (u0, u1, v0, v1) in objects:
             a0, a1 = max(v0, r0) - r0, min(v1, r1) - r0
@@ -295,6 +339,10 @@ def render_layers(
         for tex_id in np.unique(sid[hit]):
             m = hit & (sid == tex_id)
             surf[m] = albedo(scene.textures[tex_id], st[m][:, 0], st[m][:, 1])
+        if fields is not None:  # the ground's fields and patches, in ground coordinates
+            m = hit & (sid == TERRAIN)
+            if m.any():
+                surf[m] *= _fields(scene, fields[m])
         nn = normal / np.linalg.norm(normal, axis=-1, keepdims=True)
         facing = np.sign(-np.einsum("...i,...i->...", nn, d))[..., None]
         surf = surf * (0.3 + 0.7 * np.clip((nn * facing) @ light, 0, 1))

@@ -41,12 +41,13 @@ from rigkit.geometry import (
     intrinsics,
 )
 from rigkit.synth.facades import FacadeLook, make_facades
+from rigkit.synth.ground import Ground, make_ground
 from rigkit.synth.movers import Mover, Paint, make_movers
 from rigkit.synth.shadows import CloudShadow, make_shadows
 from rigkit.synth.shapes import Box, Sphere, Terrain, TextureMap, random_texture
 from rigkit.synth.shimmer import SPECTRA
 
-BACKDROPS = ("terrain", "void")
+BACKDROPS = ("terrain", "void", "ground")
 
 
 MAX_SIDE_PX = 16384
@@ -90,8 +91,10 @@ class SynthParams:
     shadow_drift_m: float = 6.0  # how far a cloud shadow moves between two captures, m
     n_facades: int = 0  # building facades: windowed and plain walls (rigkit.synth.facades)
     # "terrain": the objects stand on textured ground under a sky; "void": no ground,
-    # an exactly black background (as the paper's own elephant scene has)
+    # an exactly black background (as the paper's own elephant scene has); "ground":
+    # the cameras look down on ground receding up the view (rigkit.synth.ground)
     backdrop: str = "terrain"
+    depth_ratio: float = 1.6  # "ground": depth at the top of the ground over the bottom
 
     def validate(self) -> None:
         """InputError naming the first parameter out of its range."""
@@ -121,10 +124,14 @@ class SynthParams:
             "shadow_drift_m": self.shadow_drift_m >= 0,
             "n_facades": 0 <= self.n_facades <= 50,
             "backdrop": self.backdrop in BACKDROPS,
+            "depth_ratio": 1.05 <= self.depth_ratio <= 4.0,
         }
         for name, ok in checks.items():
             if not ok:
                 raise InputError(f"synth parameter {name}={getattr(self, name)!r} is out of range")
+        if self.backdrop == "ground" and (self.n_movers or self.n_facades):
+            raise InputError("synth: movers and facades stand on a terrain facing the "
+                             "cameras; the ground backdrop has none (set them to 0)")
 
     @property
     def focal_px(self) -> float:
@@ -157,7 +164,7 @@ class Scene:
     seed: int
     cameras: dict[str, Camera]
     euler_deg: dict[str, tuple[float, float, float]]
-    terrain: Terrain
+    terrain: Terrain | Ground
     boxes: tuple[Box, ...]  # facades included: boxes whose texture is a FacadeLook
     spheres: tuple[Sphere, ...]
     textures: tuple[TextureMap | FacadeLook | Paint, ...]  # indexed by shapes' ``texture``
@@ -259,6 +266,8 @@ def generate_scene(params: SynthParams, seed: int) -> Scene:
     params.validate()
     rng = np.random.default_rng(seed)
     cams, eulers = _cameras(params, rng)
+    if params.backdrop == "ground":
+        return _ground_scene(params, seed, cams, eulers, rng)
     f = params.focal_px
     half_w = params.distance_m * params.width / 2 / f
     half_h = params.distance_m * params.height / 2 / f
@@ -303,10 +312,25 @@ def generate_scene(params: SynthParams, seed: int) -> Scene:
     return _add_world(scene, seed, half_w, half_h)
 
 
+def _ground_scene(params: SynthParams, seed: int, cams: dict[str, Camera],
+                  eulers: dict[str, tuple[float, float, float]], rng: np.random.Generator
+                  ) -> Scene:
+    """A scene looking down on ground that recedes up the view (:mod:`rigkit.synth.ground`)."""
+    ground, boxes, spheres, textures = make_ground(params, rng)
+    gains = {name: float(1 + rng.uniform(-params.gain_jitter, params.gain_jitter)) for name in cams}
+    half_w = params.distance_m * params.width / 2 / params.focal_px
+    shadows = make_shadows(params.n_shadows, half_w, params.shadow_drift_m,
+                           np.random.default_rng([seed, 17]))  # as _add_world draws them
+    return Scene(params=params, seed=seed, cameras=cams, euler_deg=eulers, terrain=ground,
+                 boxes=boxes, spheres=spheres, textures=textures, gains=gains,
+                 shadows=shadows)
+
+
 def _add_world(scene: Scene, seed: int, half_w: float, half_h: float) -> Scene:
     """``scene`` with its facades, movers and cloud shadows. Each draws from a generator
     of its own, so that they leave the rest of the seed's scene as it was."""
     p = scene.params
+    assert isinstance(scene.terrain, Terrain)  # they stand on a terrain facing the cameras
     relief = p.relief * p.distance_m
     n = len(scene.textures)
     facades, looks = make_facades(p.n_facades, scene.terrain, half_w, half_h, relief, n,

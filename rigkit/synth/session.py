@@ -21,12 +21,14 @@ from rigkit.capture import (
     add_frame,
     add_target,
     create_session,
+    load_session,
     utc_now,
 )
 from rigkit.core.files import write_text
 from rigkit.core.yamlfile import dump_yaml
 from rigkit.synth.evaluate import visible_in_right
 from rigkit.synth.io import VIEWS, check_out_folder, frame_name, load_scene, write_scene
+from rigkit.synth.placement import Placement, place_session
 from rigkit.synth.scene import Scene
 
 RIG_FILE = "rig.yaml"
@@ -105,14 +107,20 @@ def write_synthetic_session(
     laser_sigma_m: float = 0.05,
     seed: int = 0,
     progress: Callable[[str, float], None] | None = None,
+    placement: Placement | None = None,
 ) -> Session:
     """Render ``scene`` into ``out_dir`` (missing or empty) as a session with
-    ``n_targets`` laser targets."""
+    ``n_targets`` laser targets, placed on the map by ``placement`` if given
+    (:func:`rigkit.synth.placement.place_session`)."""
     check_out_folder(out_dir, new=True)
     write_scene(scene, out_dir, progress)
-    return session_from_rendered(
+    session = session_from_rendered(
         scene, out_dir, n_targets=n_targets, laser_sigma_m=laser_sigma_m, seed=seed
     )
+    if placement is None:
+        return session
+    place_session(out_dir, placement)
+    return load_session(out_dir)
 
 
 def session_from_rendered(

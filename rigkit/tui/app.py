@@ -32,7 +32,8 @@ from textual.theme import Theme
 from textual.widgets import Footer, Header, Static
 from textual.worker import get_current_worker
 
-from rigkit.capture.session import POSITIONS, Session, is_session, load_session, log_event
+from rigkit.capture.model import POSITIONS, Session
+from rigkit.capture.session import is_session, load_session, log_event
 from rigkit.core.chatter import private_terminal
 from rigkit.errors import InputError, RigkitError, environment_message
 from rigkit.tui.config import FieldConfig
@@ -616,37 +617,26 @@ class FieldApp(App[None]):
     def ingest(self, session: Session, path: Path, position: str, retake: bool = False
                ) -> None:
         """Copy ``path`` into the session for ``position``, then run its on-site checks
-        (blocking; called from the frame worker). A frame that does not match the
-        position's burst is held back with a question instead (unless ``retake``)."""
-        from rigkit.capture.actions import check_frame_file
-        from rigkit.capture.field import (
-            add_position_frame,
-            burst_misfit,
-            frames_at,
-            newest_failed,
-        )
+        (blocking; called from the frame worker): staged, hashed and decoded once
+        (:func:`rigkit.capture.field.ingest`; what is refused at a glance is told before
+        it is read whole). A frame that does not match the position's burst is held back
+        with a question instead (unless ``retake``)."""
+        from rigkit.capture.field import frames_at, ingest, newest_failed
 
-        try:  # what is refused at a glance is told at once, before the slow comparisons
-            check_frame_file(session, position, path)
-        except RigkitError as exc:
-            self.tell(FrameRefused(position, str(exc)))
-            return
-        except OSError as exc:
-            self.tell(FrameRefused(position, environment_message(exc)))
-            return
         retake = retake or newest_failed(session, position)  # a retake joins no burst
-        misfit = None if retake else burst_misfit(session, position, path)
-        if misfit is not None:
-            self.tell(FrameHeld(position, path, misfit, misfit.elsewhere))
-            return
         try:
-            session = add_position_frame(session, position, path, retake)
+            done = ingest(session, position, path, replace_existing=retake,
+                          burst=not retake, check_burst=not retake)
         except RigkitError as exc:
             self.tell(FrameRefused(position, str(exc)))
             return
         except OSError as exc:  # a full card or disk, a read-only session
             self.tell(FrameRefused(position, environment_message(exc)))
             return
+        if done.held is not None:
+            self.tell(FrameHeld(position, path, done.held, done.held.elsewhere))
+            return
+        session = done.session
         with contextlib.suppress(OSError):
             self._taken[path] = path.stat().st_size
         self.post_message(SessionChanged(session))

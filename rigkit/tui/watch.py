@@ -19,8 +19,8 @@ from pathlib import Path
 from watchfiles import watch
 
 from rigkit.capture import POSITIONS, Session
-from rigkit.capture.rawio import RAW_SUFFIXES
-from rigkit.capture.session import RAW_DIR
+from rigkit.capture.model import RAW_DIR
+from rigkit.imagefile.rawio import RAW_SUFFIXES
 from rigkit.tui.config import SETTLE_S
 
 IMAGE_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".jpg", ".jpeg"}) | RAW_SUFFIXES

@@ -16,11 +16,13 @@ from rigkit.batch import (
     process_session,
     run_batch,
 )
+from rigkit.batch.compare import SCATTER_GAIN, median_scatter
 from rigkit.capture import Target, load_session
 from rigkit.capture.comparisons import LOG_NAME, SIGNIFICANT_DIGITS, latest_run, read_rows
 from rigkit.cli import main
 from rigkit.core.files import recover_folder
 from rigkit.errors import InputError
+from rigkit.pipeline.lens import Lens
 from tests.conftest import copy_session
 
 
@@ -73,9 +75,9 @@ def test_results_folder_is_complete(processed_session: Path) -> None:
 
 
 def test_reprocessing_replaces_results_and_keeps_history(
-    processed_session: Path, tmp_path: Path
+    processed_small: Path, tmp_path: Path
 ) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     raw_before = {p.name: p.read_bytes() for p in (copy / "raw").iterdir()}
     process_session(copy, "20260102T000000Z-0002")
     meta = json.loads((copy / "results" / "depth.json").read_text())
@@ -87,9 +89,9 @@ def test_reprocessing_replaces_results_and_keeps_history(
 
 
 def test_a_failed_write_leaves_the_old_results(
-    processed_session: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    processed_small: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     before = (copy / "results" / "depth.json").read_text()
 
     def broken(img: np.ndarray, compression: int | None = None) -> bytes:
@@ -103,8 +105,8 @@ def test_a_failed_write_leaves_the_old_results(
     assert len(read_rows(copy / LOG_NAME)) == 5
 
 
-def test_an_interrupted_swap_is_undone(processed_session: Path, tmp_path: Path) -> None:
-    copy = copy_session(processed_session, tmp_path)
+def test_an_interrupted_swap_is_undone(processed_small: Path, tmp_path: Path) -> None:
+    copy = copy_session(processed_small, tmp_path)
     os.rename(copy / "results", copy / ".results-old-20260104T000000Z-0004")
     (copy / ".results-20260105T000000Z-0005").mkdir()
     recover_folder(copy, "results")
@@ -186,20 +188,55 @@ def test_range_from_depth_on_a_plane(synth_session: Path) -> None:
     depth = np.full((720, 960), 300.0, np.float32)
     sigma = np.full((720, 960), 1.5, np.float32)
     target = Target("A", (900.0, 40.0), 9, session.targets[0].readings)
-    row = compare_target(session, target, depth, sigma, "run")
+    lens = Lens(f, (960, 720))
+    row = compare_target(session, target, depth, sigma, "run", lens)
     x, y = (900.0 - 479.5) / f, (40.0 - 359.5) / f
     expected = 300.0 * math.sqrt(1 + x * x + y * y)
     assert row.estimate_range_m == pytest.approx(expected, rel=1e-9)
-    assert row.estimate_sigma_m == pytest.approx(1.5 * expected / 300.0)
+    # A plane scatters nothing: the median's sigma is the per-pixel one over the root of
+    # the window's pixels (the least it could be), with the offset's share added.
+    own = 1.2533 * 1.5 / 9
+    assert row.estimate_sigma_m == pytest.approx(own * expected / 300.0)
+    offset_row = compare_target(session, target, depth, sigma, "run", lens, (0.004, 300.0))
+    assert offset_row.estimate_sigma_m == pytest.approx(
+        math.hypot(own, 1.2) * expected / 300.0)
+    # Through a bent lens: the recorded pixel's ray is the undistorted one.
+    bent = Lens(f, (960, 720), (40.0, 0.0, 0.0, 0.0, 0.0))
+    row = compare_target(session, target, depth, sigma, "run", bent)
+    x, y = (bent.to_ideal(np.array([[900.0, 40.0]]))[0] - [479.5, 359.5]) / f
+    assert row.estimate_range_m == pytest.approx(300.0 * math.sqrt(1 + x * x + y * y),
+                                                 rel=1e-12)
+    assert row.estimate_range_m < expected - 1e-3  # the lens pushed the corner outwards
     depth[:, :] = np.nan
-    row = compare_target(session, target, depth, sigma, "run")
+    row = compare_target(session, target, depth, sigma, "run", Lens(f, (960, 720)))
     assert row.status == "no_estimate" and math.isnan(row.error_pct)
 
 
-def test_a_session_being_processed_is_refused(synth_session: Path, tmp_path: Path) -> None:
+def _blocky(sigma: float, side: int, seed: int, shape=(720, 960)) -> np.ndarray:
+    """300 m plus a tilt, plus an error constant over each ``side``-px block, one sigma
+    ``sigma`` (relative): each window-sized median is off by one draw of it."""
+    rng = np.random.default_rng(seed)
+    rows, cols = np.indices(shape)
+    blocks = rng.normal(0.0, sigma, (shape[0] // side + 1, shape[1] // side + 1))
+    return (300.0 + 0.01 * cols + 0.02 * rows) * (1 + blocks[rows // side, cols // side])
+
+
+def test_a_targets_sigma_is_what_its_windows_median_scatters() -> None:
+    """Errors shared by each window-sized patch, 0.2 % apart, on a sloping plane: the
+    measured sigma of a target's median is that 0.2 % (times the gain that covers what
+    scatters beyond its neighbourhood), whatever the per-pixel sigma says; 0 for none."""
+    found = [median_scatter(_blocky(0.002, 9, seed), 480 + 4, 360 + 4, 9)
+             for seed in range(12)]
+    assert np.median(found) == pytest.approx(SCATTER_GAIN * 0.002, rel=0.2)
+    assert median_scatter(_blocky(0.0, 9, 0), 484, 364, 9) == pytest.approx(0.0, abs=1e-9)
+    sky = np.full((720, 960), np.nan)
+    assert math.isnan(median_scatter(sky, 480, 360, 9))  # nothing measures it
+
+
+def test_a_session_being_processed_is_refused(small_session: Path, tmp_path: Path) -> None:
     import fcntl
 
-    copy = copy_session(synth_session, tmp_path)
+    copy = copy_session(small_session, tmp_path)
     with open(copy / ".lock", "a") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
         with pytest.raises(InputError, match="busy: another rigkit command holds it"):
@@ -231,7 +268,7 @@ def test_a_session_with_bursts_and_a_lens_profile(tmp_path: Path) -> None:
     assert outcome.ok, outcome.message
     meta = json.loads((out / "results" / "depth.json").read_text())
     assert [len(meta["frames"][p]) for p in ("left", "right", "back")] == [3, 3, 3]
-    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"][0] == pytest.approx(k1)
+    assert meta["rig"]["distortion"][0] == pytest.approx(k1)
     # The shimmer measured between the left burst's first two frames (0.1 px rendered,
     # over 8 px: at 640 px the tracker's 21 px window averages some of it away).
     assert meta["shimmer"]["frames"] == "left frames 1 and 2"

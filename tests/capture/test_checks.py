@@ -8,8 +8,8 @@ from typing import Any
 import pytest
 
 from rigkit.capture.checks import check_capture, size_findings
-from rigkit.capture.exif import read_exif
 from rigkit.errors import InputError
+from rigkit.imagefile.exif import read_exif
 from rigkit.rig import load_rig
 from tests.conftest import rig_file
 

@@ -3,6 +3,7 @@ known similarity and parallax, magnification from a known range, sessions in tmp
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 import shutil
@@ -16,9 +17,9 @@ from rigkit.capture import create_session, load_session
 from rigkit.capture.field import (
     add_position_frame,
     back_checks,
-    burst_misfit,
     exif_check,
     frames_at,
+    ingest,
     next_step,
     onsite_checks,
     right_checks,
@@ -63,7 +64,7 @@ def test_implied_range_m_inverts_the_back_geometry() -> None:
 def test_map_views_recovers_a_known_similarity_with_no_parallax() -> None:
     left = texture()
     other = similarity(left, 0.99, 2.0, (4.0, -3.0))
-    view = map_views(left, other, reduction=4.0, focal_px=4000.0)
+    view = map_views(left, other, 4.0, 4000.0)
     assert view.scale == pytest.approx(0.99, abs=3e-4)
     # getRotationMatrix2D turns the content counter-clockwise on screen: roll is -2 deg.
     assert view.roll_deg == pytest.approx(-2.0, abs=0.02)
@@ -77,7 +78,7 @@ def test_map_views_measures_parallax_a_similarity_cannot_explain() -> None:
     v, u = np.mgrid[0:h, 0:w].astype(np.float32)
     bulge = 3.0 * np.sin(np.pi * v / h) * np.sin(np.pi * u / w)  # nearer in the middle
     other = cv2.remap(left, u + bulge, v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-    view = map_views(left, other, focal_px=1000.0)
+    view = map_views(left, other, 1.0, 1000.0)
     assert view.parallax is not None and view.parallax.spread_px > MIN_PARALLAX_PX
     assert view.parallax.problem() is None
     assert view.scale == pytest.approx(1.0, abs=0.01)
@@ -119,7 +120,9 @@ def test_little_depth_in_view_is_told_apart_from_an_unmoved_tripod() -> None:
     turned = map_views(left, similarity(left, 1.0, 0.3, (2.0, 1.0)), 1.0, 6000.0)
     assert flat.parallax is not None and turned.parallax is not None
     assert flat.parallax.moved and not turned.parallax.moved
-    assert "little depth in view: the right frame moved" in right_checks(flat)[0].message
+    # a nearly flat scene is no refusal: the back view gives its range (issue 47)
+    note = right_checks(flat)[0]
+    assert note.ok and "little depth in view" in note.message and "back view" in note.message
     assert "the tripod was not moved" in right_checks(turned)[0].message
 
 
@@ -206,10 +209,14 @@ def test_a_frame_that_cannot_be_matched_with_the_burst_is_none_of_it(tmp_path: P
     taken into the burst with a tick, since "could not compare" counted as "belongs"."""
     session = add_position_frame(new_session(tmp_path), "left",
                                  _png(tmp_path / "one.png", texture(seed=1)))
+    other = ingest(session, "left", _png(tmp_path / "other.png", texture(seed=2)), burst=True,
+                   check_burst=True)
+    assert other.held is not None
+    assert other.held.startswith("other.png does not match the left burst")
+    assert len(frames_at(load_session(session.path), "left")) == 1  # held, not added
     swayed = _png(tmp_path / "swayed.png", similarity(texture(seed=1), 1.0, 0.0, (1.5, -1.0)))
-    assert burst_misfit(session, "left", swayed) is None
-    other = burst_misfit(session, "left", _png(tmp_path / "other.png", texture(seed=2)))
-    assert other is not None and other.startswith("other.png does not match the left burst")
+    done = ingest(session, "left", swayed, burst=True, check_burst=True)
+    assert done.held is None and len(frames_at(done.session, "left")) == 2
 
 
 def test_add_frame_burst_refuses_a_frame_of_another_view(tmp_path: Path, capsys) -> None:
@@ -330,7 +337,7 @@ def test_parallax_check_on_rendered_views(baseline_m: float, moved: bool) -> Non
     scene = generate_scene(SynthParams(width=512, height=384, baseline_lr_m=baseline_m), 7)
     left, right = (expose(scene, v, render_view(scene, v)[0]).astype(np.float32)
                    for v in ("left", "right"))
-    failed = _failed(right_checks(map_views(left, right, focal_px=scene.params.focal_px)))
+    failed = _failed(right_checks(map_views(left, right, 1.0, scene.params.focal_px)))
     assert ("parallax" not in failed) == moved
 
 
@@ -341,7 +348,8 @@ def test_back_magnification_gives_the_range_of_a_rendered_scene() -> None:
     scene = generate_scene(SynthParams(width=512, height=384), 7)
     (left, depth), (back, _) = (render_view(scene, v) for v in ("left", "back"))
     view = map_views(expose(scene, "left", left).astype(np.float32),
-                     expose(scene, "back", back).astype(np.float32))
+                     expose(scene, "back", back).astype(np.float32), 1.0,
+                     scene.params.focal_px, axis="z", parallax=False)
     true_z = float(np.nanmedian(depth))
     assert implied_range_m(view.scale, 2.0) == pytest.approx(true_z, rel=0.1)
     assert not _failed(back_checks(view, load_rig(SYNTHETIC)))
@@ -353,10 +361,12 @@ def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
     (the checks, the check image beside them, the back frame's roles check against the
     right one): each file decoded once."""
     from rigkit.capture import views
+    from rigkit.imagefile import decode
 
     read: list[str] = []
-    decoded = views.decoded
-    monkeypatch.setattr(views, "decoded", lambda s, f: read.append(f.file) or decoded(s, f))
+    decoded = decode._decode
+    monkeypatch.setattr(decode, "_decode", lambda path, data: read.append(
+        hashlib.sha256(data).hexdigest()) or decoded(path, data))
     left = texture(seed=11)
     frames = {"left": left, "right": similarity(left, 1.0, 0.4, (6.0, 1.0)),
               "back": similarity(left, 0.99, -0.3, (2.0, -3.0))}
@@ -365,4 +375,15 @@ def test_each_frame_is_decoded_once_for_every_check(tmp_path: Path,
         session = add_position_frame(session, position, _png(tmp_path / f"{position}.png", image))
         onsite_checks(session, position)
         views.check_image(session, frames_at(session, position)[-1])
-    assert read == ["raw/left.png", "raw/right.png", "raw/back.png"]
+    assert read == [frames_at(session, p)[0].sha256 for p in ("left", "right", "back")]
+
+
+def test_the_back_check_gives_c_lb_as_the_profile_does() -> None:
+    """A profile's C_lb of 2.031 m is said as such, not "2.0"."""
+    from dataclasses import replace
+
+    from rigkit.rig import Baseline
+
+    profile = replace(load_rig(SYNTHETIC), baseline_lb=Baseline(2.031, 0.004))
+    messages = [c.message for c in back_checks(_view(scale=0.9931), profile)]
+    assert any("m at C_lb = 2.031 m" in m for m in messages)

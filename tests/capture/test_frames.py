@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rigkit.capture.frames import FrameFile, load_capture
-from rigkit.capture.rawio import load_linear_grey, to_pipeline
 from rigkit.errors import InputError
+from rigkit.imagefile.rawio import load_linear_grey, to_pipeline
 from rigkit.pipeline.burst import stack_burst
 
 

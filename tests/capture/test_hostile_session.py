@@ -233,12 +233,12 @@ def test_a_session_whose_path_is_not_utf8_is_processed(
 
 
 def test_a_log_that_is_a_link_fails_its_session_before_the_work(
-    processed_session: Path, small_session: Path, tmp_path: Path, outside: Path,
+    processed_small: Path, small_session: Path, tmp_path: Path, outside: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """Said before the run, not after it replaced the results; the next session is
     processed all the same."""
-    bad = copy_session(processed_session, tmp_path, "bad")
+    bad = copy_session(processed_small, tmp_path, "bad")
     results = {p.name: p.read_bytes() for p in (bad / "results").iterdir()}
     (bad / "history.log").unlink()
     (bad / "history.log").symlink_to(outside)
@@ -253,9 +253,9 @@ def test_a_log_that_is_a_link_fails_its_session_before_the_work(
 
 @pytest.mark.parametrize("name", ["depth.npy", "depth.json"])
 def test_results_that_are_links_are_not_exported(
-    processed_session: Path, tmp_path: Path, name: str, capsys: pytest.CaptureFixture[str]
+    processed_small: Path, tmp_path: Path, name: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    session = copy_session(processed_session, tmp_path)
+    session = copy_session(processed_small, tmp_path)
     elsewhere = tmp_path / f"elsewhere-{name}"
     (session / "results" / name).rename(elsewhere)
     (session / "results" / name).symlink_to(elsewhere)

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from rigkit.capture import add_frame, create_session, frame_problems, load_session
-from rigkit.capture.exif import read_exif
-from rigkit.capture.picture import picture_problem
-from rigkit.capture.rawio import frame_size, load_linear_grey
 from rigkit.cli import main
 from rigkit.errors import InputError
+from rigkit.imagefile.exif import read_exif
+from rigkit.imagefile.picture import picture_problem
+from rigkit.imagefile.rawio import frame_size, load_linear_grey
 from tests.conftest import rig_file
 from tests.dngutil import bayer_from_grey, write_camera_dng
 

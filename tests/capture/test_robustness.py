@@ -23,9 +23,10 @@ from rigkit.capture import (
     frame_problems,
     load_session,
 )
-from rigkit.capture.actions import create_session_in, stale_results
+from rigkit.capture.actions import create_session_in
 from rigkit.capture.comparisons import LOG_NAME, append_rows, read_rows
 from rigkit.capture.lock import session_lock
+from rigkit.capture.results import stale_results
 from rigkit.cli import main
 from rigkit.core import files
 from rigkit.errors import InputError
@@ -104,9 +105,9 @@ def test_a_change_while_processing_waits_then_names_who_holds_it(tmp_path: Path)
                 pass
 
 
-def test_session_show_says_results_are_stale(processed_session: Path, tmp_path: Path,
+def test_session_show_says_results_are_stale(processed_small: Path, tmp_path: Path,
                                              capsys) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     assert stale_results(load_session(copy)) is None
     session = load_session(copy)
     target = session.targets[0]
@@ -220,18 +221,18 @@ def test_a_torn_last_row_is_reported_and_skipped(tmp_path: Path) -> None:
     assert "line 3 is damaged and was skipped" in torn[0]
 
 
-def test_a_full_tmpfs_during_processing_is_one_line(synth_session: Path, tmp_path: Path,
+def test_a_full_tmpfs_during_processing_is_one_line(small_session: Path, tmp_path: Path,
                                                     capfd) -> None:
     import shutil
 
-    needed = sum(p.stat().st_size for p in (synth_session / "raw").iterdir()) + (256 << 10)
+    needed = sum(p.stat().st_size for p in (small_session / "raw").iterdir()) + (256 << 10)
     mount = tmp_path / "small"
     mount.mkdir()
     if os.system(f"mount -t tmpfs -o size={needed} tmpfs {mount} 2>/dev/null") != 0:
         pytest.skip("cannot mount a tmpfs here")
-    try:  # the session's frames fit; its 7 MB of results do not
+    try:  # the session's frames fit; its 1.4 MB of results do not
         copy = mount / "seed-3"
-        shutil.copytree(synth_session, copy, ignore=shutil.ignore_patterns("ground_truth"))
+        shutil.copytree(small_session, copy, ignore=shutil.ignore_patterns("ground_truth"))
         code = main(["process", str(copy)])
         err = capfd.readouterr().err
         assert code == 1 and "please report" not in err
@@ -291,9 +292,9 @@ def test_a_killed_copy_is_cleaned_by_the_next_change(tmp_path: Path) -> None:
 
 
 def test_a_swap_stopped_between_its_renames_is_undone_by_the_next_command(
-    processed_session: Path, tmp_path: Path, capsys
+    processed_small: Path, tmp_path: Path, capsys
 ) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     results = copy / "results"
     before = sorted(p.name for p in results.iterdir())
     results.rename(copy / ".results-old-0001")  # the crash: retired, the new one not in
@@ -303,9 +304,9 @@ def test_a_swap_stopped_between_its_renames_is_undone_by_the_next_command(
     assert not list(copy.glob(".results-*"))
 
 
-def test_rows_lost_between_the_swap_and_the_log_are_appended(processed_session: Path,
+def test_rows_lost_between_the_swap_and_the_log_are_appended(processed_small: Path,
                                                              tmp_path: Path) -> None:
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     run_rows = read_rows(copy / "results" / LOG_NAME)
     (copy / LOG_NAME).unlink()  # the crash: results/ swapped in, the log never written
     add_target(load_session(copy), "late", (100.0, 100.0), readings=[reading(300.0)])
@@ -314,11 +315,11 @@ def test_rows_lost_between_the_swap_and_the_log_are_appended(processed_session: 
 
 
 def test_a_damaged_copy_of_the_rows_in_results_blocks_nothing(
-    processed_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    processed_small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """results/ is derived: a garbled comparisons.csv there is replaced by the next run,
     not a session that can no longer be processed."""
-    copy = copy_session(processed_session, tmp_path)
+    copy = copy_session(processed_small, tmp_path)
     logged = (copy / LOG_NAME).read_bytes()
     (copy / "results" / LOG_NAME).write_text("garbage,,,\n")
     assert main(["process", str(copy)]) == 0

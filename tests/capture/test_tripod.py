@@ -41,7 +41,45 @@ def test_a_typed_position_and_directions_round_trip(
     assert (reading.azimuth_deg, reading.inclination_deg) == (47.3, 1.2)
     assert "set-position lat 46.5512300" in (s / "history.log").read_text()
     assert main(["session", "show", str(s)]) == 0
-    assert "tripod   46.5512300, 7.9845600, 1012.50 m (manual)" in capsys.readouterr().out
+    assert "tripod   46.5512300, 7.9845600, 1012.50 m (manual; height unknown)" in (
+        capsys.readouterr().out)
+    assert loaded.tripod.height_datum == "unknown" and loaded.tripod.ellipsoidal_height_m is None
+
+
+def test_a_typed_height_says_what_it_is_measured_from(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    s = session(tmp_path)
+    typed = ["session", "set-position", str(s), "--lat", "46.55", "--lon", "7.98",
+             "--height-m", "1012.4"]
+    assert main([*typed, "--height-datum", "epsg:5728"]) == 0
+    tripod = load_session(s).tripod
+    assert tripod is not None and tripod.height_datum == "EPSG:5728"
+    assert main([*typed, "--height-datum", "Ellipsoidal"]) == 0
+    tripod = load_session(s).tripod
+    assert tripod is not None and tripod.ellipsoidal_height_m == 1012.4
+    capsys.readouterr()
+    for datum, message in (("EPSG:2056", "EPSG:2056 (CH1903+ / LV95): not a vertical CRS"),
+                           ("EPSG:999999", "EPSG:999999: not a vertical CRS PROJ knows"),
+                           ("msl", "height datum 'msl': expected ellipsoidal, gps, unknown")):
+        assert main([*typed, "--height-datum", datum]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1
+    assert load_session(s).tripod == tripod  # refused: the recorded position stays
+
+
+def test_a_session_from_before_heights_had_a_datum(tmp_path: Path) -> None:
+    """A tripod written without height_datum: a GPS's is GGA's mean sea level, a typed
+    one's is not known."""
+    s = session(tmp_path)
+    main(["session", "set-position", str(s), "--lat", "46", "--lon", "7", "--height-m", "5"])
+    data = yaml.safe_load((s / "session.yaml").read_text())
+    del data["tripod"]["height_datum"]
+    (s / "session.yaml").write_text(yaml.safe_dump(data))
+    assert load_session(s).tripod.height_datum == "unknown"
+    data["tripod"]["source"] = "gps:/dev/ttyACM0"
+    (s / "session.yaml").write_text(yaml.safe_dump(data))
+    assert load_session(s).tripod.height_datum == "gps"
 
 
 def test_a_position_from_a_simulated_gps(tmp_path: Path) -> None:
@@ -52,12 +90,17 @@ def test_a_position_from_a_simulated_gps(tmp_path: Path) -> None:
     assert tripod is not None and tripod.fixes == 4 and tripod.source == f"gps:{url}"
     assert tripod.lat_deg == pytest.approx(-33.8568, abs=3 / 111_000)
     assert tripod.raw is not None and tripod.raw.startswith("$GPGGA")
+    # GGA's geoid separation is kept: the ellipsoidal height is the altitude plus it.
+    assert tripod.height_datum == "gps" and tripod.geoid_separation_m == pytest.approx(47.3)
+    assert tripod.ellipsoidal_height_m == pytest.approx(58 + 47.3)
+    assert load_session(s).tripod == tripod  # through session.yaml and back
 
 
 @pytest.mark.parametrize(("args", "message"), [
     (["--lat", "95", "--lon", "7", "--height-m", "0"], "latitude 95: expected -90 to 90"),
     (["--lat", "46", "--lon", "7"], "give all of --lat, --lon and --height-m, or --gps URL"),
     (["--lat", "46", "--gps", "sim://gps"], "not both"),
+    (["--height-datum", "ellipsoidal", "--gps", "sim://gps"], "not both"),
     (["--gps", "sim://gps?silent=1", "--timeout", "0.2"], "no GPS fix from sim://gps"),
 ])
 def test_bad_positions_get_one_line(
@@ -106,6 +149,9 @@ def test_the_field_tui_keeps_the_azimuth_and_360_is_north() -> None:
     (lambda d: d["tripod"].update(lat_deg=91.0), "tripod: latitude 91"),
     (lambda d: d["tripod"].update(height_m="1012 m"), "tripod.height_m: must be a number"),
     (lambda d: d["tripod"].update(datum="WGS84"), "tripod.datum: unknown key"),
+    (lambda d: d["tripod"].update(height_datum="NN"), "tripod.height_datum: height datum 'NN'"),
+    (lambda d: d["tripod"].update(geoid_separation_m=470), "tripod.geoid_separation_m: must "
+     "be within -150 to 150 m"),
     (lambda d: d["targets"][0]["readings"][0].update(azimuth_deg=400),
      r"targets\[0\].readings\[0\].azimuth_deg: must be at least 0 and under 360"),
 ])

@@ -34,7 +34,15 @@ def test_depth_writes_depth_sigma_sidecar_and_previews(scene_depth, truth):
     # What rigkit export needs: the left image's grey values and the intrinsics.
     grey = cv2.imread(str(folder / "d.grey.png"), cv2.IMREAD_UNCHANGED)
     assert grey.shape == depth.shape and grey.dtype == np.uint8
-    assert meta["left_camera_px"] == {"f": truth.focal_px, "cx": 479.5, "cy": 359.5}
+    # The left view as the run took it: its lens fit's centre (the scene's principal
+    # point lies off the image centre (479.5, 359.5); the fit moves towards it).
+    camera, centre = meta["left_camera_px"], meta["lens_fit"]["centres_px"]["left"]
+    assert camera["f"] == truth.focal_px
+    assert camera["cx"] - 479.5 == pytest.approx(centre[0], abs=0.006)
+    assert camera["cy"] - 359.5 == pytest.approx(centre[1], abs=0.006)
+    true_cx, true_cy = truth.cameras["left"].K[0, 2], truth.cameras["left"].K[1, 2]
+    assert abs(camera["cx"] - true_cx) < abs(479.5 - true_cx)
+    assert abs(camera["cy"] - true_cy) < abs(359.5 - true_cy)
     # What each depth rests on: matched (1) or filled (2) wherever there is one.
     flags_png = np.load(folder / "d.flags.npy")  # data, not a picture: .npy
     assert flags_png.shape == depth.shape and flags_png.dtype == np.uint8
@@ -127,7 +135,7 @@ def test_depth_takes_bursts_and_a_distortion(burst_dir, tmp_path, capsys):
     assert main(args) == 0
     meta = json.loads((tmp_path / "d.json").read_text())
     assert len(meta["frames"]["left"]) == 2 and meta["burst_length"] == 2
-    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"] == [0.0] * 5
+    assert meta["rig"]["distortion"] == [0.0] * 5
     assert meta["settings"]["min_texture"] == 3.0
     # Fitted from the views by default: the lens the depth used is the fitted one.
     assert meta["lens_fit"]["start_k1_k2_p1_p2_k3"] == [0.0] * 5
@@ -149,7 +157,7 @@ def test_depth_with_a_lensfun_profile_held_fixed(scene_dir, truth, tmp_path):
     meta = json.loads((tmp_path / "d.json").read_text())
     assert meta["lens_fit"] is None and meta["settings"]["distortion_terms"] == 0
     assert meta["distortion_k1_k2_p1_p2_k3"][0] > 0
-    assert meta["rig"]["distortion_k1_k2_p1_p2_k3"] == meta["distortion_k1_k2_p1_p2_k3"]
+    assert meta["rig"]["distortion"] == meta["distortion_k1_k2_p1_p2_k3"]
 
 
 @pytest.mark.parametrize(

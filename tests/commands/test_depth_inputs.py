@@ -109,23 +109,23 @@ def _depth_args(*flags: str) -> object:
 
 
 def test_rig_flags_go_into_the_profile_which_is_checked_once(tmp_path: Path) -> None:
-    from rigkit.commands.depth_run import rig_source
+    from rigkit.commands.depth_run import flags_profile, rig_profile
     from rigkit.errors import InputError
 
     profile = ROOT / "rigs" / "p1000-tripod.yaml"
-    rig = rig_source(_depth_args("--rig", str(profile), "--focal-px", "53000",
+    rig = rig_profile(_depth_args("--rig", str(profile), "--focal-px", "53000",
                                  "--baseline-lb", "2.1"))
     assert rig.focal_px == 53000.0 and rig.baseline_lb.value_m == 2.1
     assert rig.baseline_lb.tolerance_m == 0.02  # the profile's tolerance is kept
     assert rig.cameras["left"].focal_tolerance == 0.01
     # One camera moved between the positions: a fact of the rig, from the flag too.
     flags = ("--focal-px", "53000", "--baseline-lr", "2", "--baseline-lb", "2")
-    assert not rig_source(_depth_args(*flags))((640, 480)).geometry().one_camera
-    assert rig_source(_depth_args(*flags, "--one-camera"))((640, 480)).geometry().one_camera
+    assert not flags_profile(_depth_args(*flags), (640, 480)).geometry().one_camera
+    assert flags_profile(_depth_args(*flags, "--one-camera"), (640, 480)).geometry().one_camera
     for text, named in (("- a list\n", "must be a mapping"),
                         ("version: 1\nname: x\ncamera: {}\n", "baselines")):
         bad = tmp_path / "bad.yaml"
         bad.write_text(text)
         with pytest.raises(InputError, match=named) as caught:
-            rig_source(_depth_args("--rig", str(bad), "--focal-px", "53000"))
+            rig_profile(_depth_args("--rig", str(bad), "--focal-px", "53000"))
         assert str(bad) in str(caught.value) and "\n" not in str(caught.value)

@@ -109,9 +109,9 @@ def test_eval_csv_onto_the_scene_is_refused(scene_dir: Path, scene_depth: tuple[
 
 
 def test_rig_calibrate_writes_no_profile_into_a_session(
-    processed_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    processed_small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    session = copy_session(processed_session, tmp_path)
+    session = copy_session(processed_small, tmp_path)
     before = _digests(*[p for p in session.rglob("*") if p.is_file()])
     for out in (session / "session.yaml", session / "calibrated.yaml",
                 session / "raw" / "rig.yml"):

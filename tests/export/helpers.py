@@ -3,7 +3,6 @@ PLY reader written for the tests (numpy only)."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -12,9 +11,8 @@ import numpy as np
 
 from rigkit.capture import LaserReading, add_target, create_session, load_session
 from rigkit.capture.positioning import set_tripod_position
-from rigkit.capture.tripod import TripodPosition
-from rigkit.export.georef import enu_direction
-from tests.conftest import rig_file
+from rigkit.capture.tripod import TripodPosition, enu_direction
+from tests.conftest import make_record, rig_file
 
 SIZE = (400, 300)
 """(width, height) px: rigs/synthetic.yaml's 6 x 4.5 degree view at 400 px."""
@@ -30,26 +28,47 @@ def depth_plane(size: tuple[int, int] = SIZE) -> np.ndarray:
     return depth
 
 
-def write_results(session: Path, depth: np.ndarray, run_id: str = "20260412T090000Z-0001"
-                  ) -> None:
+def write_results(session: Path, depth: np.ndarray, run_id: str = "20260412T090000Z-0001",
+                  flags: np.ndarray | None = None) -> None:
     """A results/ folder as rigkit process writes it, for ``depth`` (sigma 1 % of depth,
-    grey a ramp)."""
+    grey a ramp; ``flags.npy`` only if given, as before rigkit wrote it)."""
     results = session / "results"
     results.mkdir()
     np.save(results / "depth.npy", depth)
+    if flags is not None:
+        np.save(results / "flags.npy", flags)
     np.save(results / "sigma.npy", (0.01 * depth).astype(np.float32))
     grey = (np.arange(depth.size) % 256).astype(np.uint8).reshape(depth.shape)
     cv2.imwrite(str(results / "grey.png"), grey)
-    frames = {pos: [] for pos in ("left", "right", "back")}  # the session's: none taken
-    (results / "depth.json").write_text(json.dumps({"run_id": run_id, "frames": frames}))
+    height, width = depth.shape
+    camera = load_session(session).rig().intrinsics((width, height))
+    record = make_record(load_session(session), run_id=run_id,
+                         image_size_px=(width, height),
+                         left_camera_px=(camera.focal_px, camera.cx_px, camera.cy_px))
+    (results / "depth.json").write_text(record.to_json())
 
 
-def new_session(folder: Path, name: str = "geo", depth: np.ndarray | None = None) -> Path:
+def new_session(folder: Path, name: str = "geo", depth: np.ndarray | None = None,
+                flags: np.ndarray | None = None) -> Path:
     """A session on rigs/synthetic.yaml at :data:`SIZE` with results of ``depth``."""
     path = folder / name
     create_session(path, rig_file(folder, SIZE))
-    write_results(path, depth_plane() if depth is None else depth)
+    write_results(path, depth_plane() if depth is None else depth, flags=flags)
     return path
+
+
+def ground_depth(rotation: np.ndarray, below_m: float, f: float) -> np.ndarray:
+    """(H, W) float32 m: the depth of flat ground ``below_m`` under the camera (an
+    east-north plane of the tripod's local frame) for a camera oriented by ``rotation``
+    (camera -> ENU), NaN where a pixel's ray does not go down to it."""
+    width, height = SIZE
+    v, u = np.mgrid[0:height, 0:width].astype(np.float64)
+    rays = np.stack([(u - (width - 1) / 2) / f, (v - (height - 1) / 2) / f, np.ones_like(u)],
+                    axis=-1)
+    down = -(rays @ rotation.T)[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = np.where(down > 0, below_m / down, np.nan)
+    return depth.astype(np.float32)
 
 
 def camera_orientation(azimuth: float, elevation: float, roll: float) -> np.ndarray:
@@ -77,12 +96,15 @@ def laser_sighting(rotation: np.ndarray, pixel: tuple[float, float], depth_m: fl
 
 
 def georeferenced_session(folder: Path, rotation: np.ndarray,
-                          pixels: list[tuple[int, int]], errors_deg: list[float]) -> Path:
-    """A session with the tripod at :data:`TRIPOD` and a typed target at each pixel whose
-    laser azimuth and inclination are off by ``errors_deg`` (one per target)."""
-    path = new_session(folder)
-    set_tripod_position(path, TRIPOD)
-    depth = depth_plane()
+                          pixels: list[tuple[int, int]], errors_deg: list[float], *,
+                          depth: np.ndarray | None = None, tripod: TripodPosition = TRIPOD,
+                          flags: np.ndarray | None = None) -> Path:
+    """A session with the tripod at ``tripod`` and a typed target at each pixel whose
+    laser azimuth and inclination are off by ``errors_deg`` (one per target); results
+    ``depth`` (default :func:`depth_plane`)."""
+    depth = depth_plane() if depth is None else depth
+    path = new_session(folder, depth=depth, flags=flags)
+    set_tripod_position(path, tripod)
     f = load_session(path).rig().focal_px
     for i, ((u, v), error) in enumerate(zip(pixels, errors_deg, strict=True)):
         distance, azimuth, inclination = laser_sighting(rotation, (u, v), float(depth[v, u]), f)

@@ -8,56 +8,16 @@ import shutil
 from pathlib import Path
 
 import cv2
-import laspy
 import numpy as np
 import pytest
-import tifffile
 
-from rigkit.capture import load_session
 from rigkit.cli import main
 from rigkit.errors import InputError
 from rigkit.export import export_path
-from rigkit.rangefinder.ranging import profile_range_from_depth
+from rigkit.export.source import open_depth
+from rigkit.rangefinder.ranging import range_on_ray
+from tests.conftest import make_record
 from tests.export.helpers import SIZE, depth_plane, new_session, read_ply
-
-EXAMPLE = Path(__file__).resolve().parents[2] / "capture" / "example"
-
-
-@pytest.mark.slow
-def test_the_bundled_example_as_ply_las_laz_and_tif(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """The example processed in a copy, then exported: every format holds every estimated
-    pixel, and the points' median z is the depth map's."""
-    session = tmp_path / "example"
-    shutil.copytree(EXAMPLE, session)
-    assert main(["process", str(session), "--quiet"]) == 0
-    out = tmp_path / "cloud"
-    assert main(["export", str(session), "--out", str(out), "--format", "ply,las,laz,tif",
-                 "--quiet"]) == 0
-    depth = np.load(session / "results" / "depth.npy")
-    finite = depth[np.isfinite(depth)]
-    printed = capsys.readouterr().out
-    assert f"{finite.size} points, median z {np.median(finite):.2f} m" in printed
-    ply = read_ply(out / "example.ply")
-    assert len(ply) == finite.size
-    assert np.median(ply["z"]) == pytest.approx(np.median(finite), abs=1e-4)
-    for name in ("example.las", "example.laz"):
-        las = laspy.read(out / name)
-        assert las.header.point_count == finite.size and las.header.parse_crs() is None
-        assert np.median(las.z) == pytest.approx(np.median(finite), abs=1e-3)
-        assert np.allclose(las.x, ply["x"], atol=1e-3) and np.array_equal(las.red // 257,
-                                                                          ply["red"])
-        assert np.allclose(las.sigma, ply["sigma"])
-        # One return per pixel: LAS 1.4 readers refuse return number 0.
-        assert set(las.return_number) == {1} and set(las.number_of_returns) == {1}
-    with tifffile.TiffFile(out / "example.tif") as tif:
-        bands = tif.asarray()
-        meta = tif.shaped_metadata[0]
-    assert np.array_equal(bands[0], depth, equal_nan=True)
-    assert meta["bands"] == ["depth_m", "sigma_m"] and meta["rig"] == "synthetic-seed-7"
-    assert sorted(p.name for p in out.iterdir()) == [
-        "example.las", "example.laz", "example.ply", "example.tif"]
 
 
 def test_points_are_the_pixels_back_projected_as_the_laser_comparison_does(
@@ -72,8 +32,8 @@ def test_points_are_the_pixels_back_projected_as_the_laser_comparison_does(
     # The last grid point: pixel (399, 297), its range from the camera as the comparison has it.
     u, v = (SIZE[0] - 1) // 3 * 3, (SIZE[1] - 1) // 3 * 3
     last = ply[-1]
-    profile = load_session(session).rig()
-    expected = profile_range_from_depth(profile, SIZE, float(depth[v, u]), (u, v))
+    ray = open_depth(session).lens.rays(np.array([[u, v]], np.float64))[0]
+    expected = range_on_ray(float(depth[v, u]), (ray[0], ray[1], ray[2]))
     assert float(np.linalg.norm([last["x"], last["y"], last["z"]])) == pytest.approx(
         expected, rel=1e-6)
     assert last["x"] > 0 and last["y"] > 0  # right of and below the centre: x right, y down
@@ -97,21 +57,21 @@ def test_a_depth_map_file_from_rigkit_depth(tmp_path: Path) -> None:
     np.save(tmp_path / "d.npy", depth)
     np.save(tmp_path / "d.sigma.npy", depth * np.float32(0.01))
     cv2.imwrite(str(tmp_path / "d.grey.png"), np.full(depth.shape, 77, np.uint8))
-    meta = {"rig": {"name": "bench", "focal_px": 4000.0},
-            "left_camera_px": {"f": 4000.0, "cx": 100.0, "cy": 50.0}}
-    (tmp_path / "d.json").write_text(json.dumps(meta))
+    record = make_record(rig_name="bench", left_camera_px=(4000.0, 100.0, 50.0))
+    (tmp_path / "d.json").write_text(record.to_json())
     done = export_path(tmp_path / "d.npy", tmp_path / "out", ["ply"])
     ply = read_ply(tmp_path / "out" / "d.ply")
     first = ply[0]  # pixel (20, 0): the top-left corner is NaN
     assert first["x"] == pytest.approx((20 - 100.0) / 4000.0 * depth[0, 20], rel=1e-6)
     assert first["y"] == pytest.approx((0 - 50.0) / 4000.0 * depth[0, 20], rel=1e-6)
     assert set(ply["red"]) == {77} and done.georef is None
-    # A D.json from before rigkit recorded the intrinsics: its focal length, the centre.
+    # A D.json without the intrinsics (an older rigkit's): refused, not guessed.
+    meta = json.loads(record.to_json())
     del meta["left_camera_px"]
     (tmp_path / "d.json").write_text(json.dumps(meta))
-    export_path(tmp_path / "d.npy", tmp_path / "old", ["ply"])
-    old = read_ply(tmp_path / "old" / "d.ply")[0]
-    assert old["x"] == pytest.approx((20 - 199.5) / 4000.0 * depth[0, 20], rel=1e-6)
+    with pytest.raises(InputError, match=r"d\.json: left_camera_px: missing"):
+        export_path(tmp_path / "d.npy", tmp_path / "old", ["ply"])
+    assert not (tmp_path / "old").exists()
 
 
 def test_infinite_depths_are_no_points_and_a_reach_las_cannot_hold_is_one_line(

@@ -4,6 +4,7 @@ zone where the laser says they are."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -13,10 +14,12 @@ import pytest
 import yaml
 
 from rigkit.capture import load_session
+from rigkit.capture.tripod import enu_direction
 from rigkit.cli import main
 from rigkit.errors import InputError
 from rigkit.export import export_path
-from rigkit.export.georef import enu_direction, utm_epsg, wahba_rotation
+from rigkit.export.crs import utm_epsg
+from rigkit.export.georef import wahba_rotation
 from rigkit.geometry import rotvec_to_matrix
 from tests.export.helpers import (
     TRIPOD,
@@ -73,7 +76,7 @@ def test_a_georeferenced_las_puts_the_targets_where_the_laser_says(
     printed = capsys.readouterr().out
     assert "EPSG:32632 (WGS 84 / UTM zone 32N)" in printed and "residuals (deg)" in printed
     las = laspy.read(out / "geo.las")
-    assert las.header.parse_crs().to_epsg() == 32632
+    assert las.header.parse_crs().sub_crs_list[0].to_epsg() == 32632
     points = _las_points(out / "geo.las")
     index = np.cumsum(np.isfinite(depth_plane()).ravel()) - 1  # row-major, NaN skipped
     done = export_path(session, tmp_path / "again", ["ply"])
@@ -114,19 +117,29 @@ def _error(args: list[str], capsys: pytest.CaptureFixture[str]) -> str:
 
 @pytest.mark.parametrize(("pixels", "errors", "message"), [
     (CORNERS[:1], [0.0], "needs 2 or more targets with a laser azimuth and inclination, 1 "),
-    ([(200, 150), (203, 151)], [0.0, 0.0], "span 0.05 deg, under the 1.87 deg needed"),
+    ([(200, 150), (203, 151)], [0.0, 0.0],
+     "the targets lie within 0.05 deg of each other in the image, under the 1.87 deg needed "
+     "to fix the camera's roll; add a target near another corner"),
     (CORNERS, [0.0, 0.0, 3.0], "target T3's laser direction misses its pixel by"),
 ])
-def test_georeferencing_refuses_with_one_line(
+def test_georeferencing_refuses_with_one_line_and_auto_falls_back(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], pixels, errors, message: str
 ) -> None:
+    """--frame map refuses with the cause; --frame auto (the default) exports in the
+    camera frame and says the same cause in one line."""
     session = georeferenced_session(tmp_path, ROTATION, pixels, errors)
     out = tmp_path / "out"
-    assert message in _error(["export", str(session), "--out", str(out)], capsys)
+    assert message in _error(["export", str(session), "--out", str(out), "--frame", "map"],
+                             capsys)
     assert not out.exists() or not list(out.iterdir())
-    # In the camera frame it exports all the same.
-    assert main(["export", str(session), "--out", str(out), "--frame", "camera",
-                 "--quiet"]) == 0
+    assert main(["export", str(session), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert "  frame left camera: x right, y down, z forward, metres" in printed
+    notes = [line for line in printed if line.startswith("  not on the map: ")]
+    assert len(notes) == 1 and message in notes[0]
+    assert load_session(session).tripod is not None  # the session had a position
+    meta = json.loads((out / "geo.export.json").read_text())
+    assert meta["place"]["frame"] == "camera" and message in meta["place"]["why_not_on_the_map"]
 
 
 def test_without_a_tripod_position_auto_is_the_camera_frame(
@@ -160,5 +173,44 @@ def test_a_target_with_half_a_direction_is_named_when_left_out(
     for reading in data["targets"][1]["readings"]:
         del reading["inclination_deg"]  # T2 too: one target left, and both named
     (session / "session.yaml").write_text(yaml.safe_dump(data))
-    err = _error(["export", str(session), "--out", str(tmp_path / "out2")], capsys)
+    err = _error(["export", str(session), "--out", str(tmp_path / "out2"), "--frame", "map"],
+                 capsys)
     assert "1 have them; T2 has an azimuth but no inclination; T3 has an azimuth" in err
+
+
+def test_the_orientations_covariance_matches_the_scatter_of_fits() -> None:
+    """Directions off by the instruments' sigma (azimuth 1 deg, inclination 0.25 deg):
+    the fitted rotations scatter as orientation_covariance says (each axis's variance
+    within 20 % over 400 fits), and more readings per target shrink it as 1/n."""
+    from scipy.spatial.transform import Rotation
+
+    from rigkit.capture.tripod import direction_angles
+    from rigkit.export.georef import (
+        AZIMUTH_SIGMA_DEG,
+        INCLINATION_SIGMA_DEG,
+        Sighting,
+        orientation_covariance,
+    )
+
+    rng = np.random.default_rng(5)
+    f = 4000.0
+    pixels = [(-300, 200), (350, -250), (320, 260), (-10, -20)]
+    rays = [np.array([u / f, v / f, 1.0]) / np.linalg.norm([u / f, v / f, 1.0])
+            for u, v in pixels]
+    true = [ROTATION @ ray for ray in rays]
+    covariance = orientation_covariance([Sighting(f"T{i}", r, b) for i, (r, b) in
+                                         enumerate(zip(rays, true, strict=True))])
+    errors = []
+    for _ in range(400):
+        seen = []
+        for b in true:
+            azimuth, inclination = direction_angles(b)
+            seen.append(enu_direction(azimuth + rng.normal(0, AZIMUTH_SIGMA_DEG),
+                                      inclination + rng.normal(0, INCLINATION_SIGMA_DEG)))
+        fitted = wahba_rotation(np.array(rays), np.array(seen))
+        errors.append(Rotation.from_matrix(fitted @ ROTATION.T).as_rotvec())
+    scatter = np.cov(np.array(errors).T)
+    assert np.allclose(np.diag(scatter), np.diag(covariance), rtol=0.2)
+    four = orientation_covariance([Sighting(f"T{i}", r, b, readings=4) for i, (r, b) in
+                                   enumerate(zip(rays, true, strict=True))])
+    assert np.allclose(four, covariance / 4)

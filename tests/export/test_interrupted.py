@@ -14,7 +14,7 @@ from rigkit.core.files import staged_files
 
 
 def test_sigterm_during_an_export_leaves_nothing_behind(
-    processed_session: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    processed_small: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     capsys: pytest.CaptureFixture[str]
 ) -> None:
     def killed(*args: object, **kwargs: object) -> None:
@@ -24,7 +24,7 @@ def test_sigterm_during_an_export_leaves_nothing_behind(
     out = tmp_path / "out"
     out.mkdir()
     before = signal.getsignal(signal.SIGTERM)
-    assert main(["export", str(processed_session), "--out", str(out), "--format",
+    assert main(["export", str(processed_small), "--out", str(out), "--format",
                  "ply,tif", "--quiet"]) == 143
     assert capsys.readouterr().err.strip() == "rigkit export: terminated"
     assert list(out.iterdir()) == []  # no staging folder, no half export

@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.agreement import (
     SHIMMER_STEP_MAX_PX,
@@ -19,7 +20,6 @@ from rigkit.pipeline.agreement import (
     zncc,
 )
 from rigkit.pipeline.estimate import FLAG_DISAGREE, FLAG_FILLED, FLAG_MATCHED
-from rigkit.pipeline.images import load_grey
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.pipeline.stereo import fill_holes
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import DepthResult, RigGeometry, estimate_depth
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene
 from rigkit.synth.scene import field_params
 

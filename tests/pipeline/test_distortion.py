@@ -12,7 +12,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from rigkit.geometry import Camera, euler_to_matrix, focal_from_fov, intrinsics
-from rigkit.pipeline.ambiguity import back_view_start, spatial_blocks
+from rigkit.pipeline.ambiguity import spatial_blocks
 from rigkit.pipeline.bundle import Problem, corner_radius, initial
 from rigkit.pipeline.covariance import cluster_covariance
 from rigkit.pipeline.distortion import (
@@ -23,6 +23,7 @@ from rigkit.pipeline.distortion import (
 )
 from rigkit.pipeline.features import Matches
 from rigkit.pipeline.lens import Lens
+from rigkit.pipeline.motion import back_view_start, rig_motion
 from rigkit.pipeline.rectify import pseudo_rectify
 from rigkit.pipeline.rig import RigGeometry
 from rigkit.pipeline.settings import PipelineSettings
@@ -207,7 +208,8 @@ def test_the_offsets_share_is_how_far_a_wrong_lens_moves_the_yaw() -> None:
                   for m in _tracks(0.0, 0.0, rng, n=800))
     fit = _fit(m_lr, m_lb)
     lens = Lens(F, (W, H), (0.0,) * 5)
-    z0, back_rotvec = back_view_start(m_lb, F, lens.centre, 2.0)
+    _, back = rig_motion(m_lr, m_lb, F, lens.centre, three_view_tracks(m_lr, m_lb))
+    z0, back_rotvec = back_view_start(back, 2.0)
     problem = Problem(lens, three_view_tracks(m_lr, m_lb), 2.0, 2.0, 1, 1 / z0, np.zeros((3, 2)))
     start = initial(problem, pseudo_rectify(m_lr, F, (W, H)), back_rotvec)
     p = least_squares(problem.residuals, start, x_scale=1e-3, diff_step=1e-6).x

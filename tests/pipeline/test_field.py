@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from rigkit.errors import InputError, PipelineError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.distortion import corner_shift_px, three_view_tracks
 from rigkit.pipeline.features import Matches
-from rigkit.pipeline.images import load_grey
 from rigkit.pipeline.lens import Lens
 from rigkit.pipeline.settings import PipelineSettings
 from rigkit.synth import SynthParams, generate_scene, load_scene, write_scene

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigkit.geometry import Camera, intrinsics
 from rigkit.pipeline.lens import GRID_STEP, Lens, smooth_map
 
 # Strong enough to matter: ~110 px at the corner of a 4608x3456 frame.
@@ -58,3 +59,35 @@ def test_a_view_bent_about_its_own_centre_maps_to_a_centred_pinhole() -> None:
     bend = lens.to_ideal(pts) - (pts - np.array([20.0, -12.0]))
     assert np.allclose(bend, plain.to_ideal(pts - np.array([20.0, -12.0])) -
                        (pts - np.array([20.0, -12.0])), atol=1e-9)
+
+
+def test_rays_back_project_as_the_renderer_casts_them() -> None:
+    """A bent lens about a principal point off the centre: the export's and the laser
+    comparison's back-projection gives the rays the ray caster cast through the pixels
+    (rigkit.geometry.Camera, the synthetic scenes' model), not the pinhole's."""
+    shift = (4.5, -3.25)
+    distortion = (0.47, -2.0, 2e-4, -1e-4, 0.0)
+    lens = Lens(14654.3, (1536, 1152), distortion, shift)
+    camera = Camera(intrinsics(14654.3, 767.5 + shift[0], 575.5 + shift[1]), np.eye(3),
+                    np.zeros(3), 1536, 1152, distortion)
+    pts = np.array([[0.0, 0.0], [1535.0, 1151.0], [767.5, 575.5], [100.25, 900.75]])
+    rays = lens.rays(pts)
+    assert np.allclose(rays, camera.rays(pts[:, 0], pts[:, 1]), rtol=0, atol=1e-12)
+    pinhole = (pts - [767.5 + shift[0], 575.5 + shift[1]]) / 14654.3
+    assert np.abs(rays[0, :2] - pinhole[0]).max() * 14654.3 > 1.0  # the corner: > 1 px
+
+
+def test_ray_rows_are_the_rays_whatever_block_they_come_in() -> None:
+    """The dense rays follow the exact ones to the interpolation's 0.005 px, and a row's
+    rays are the same bits in any block of rows (its knots on whole multiples)."""
+    lens = Lens(5000.0, (800, 600), (0.4, 0.0, 0.0, 0.0, 0.0), shift=(20.0, -12.0))
+    x, y = lens.ray_rows(37, 120)
+    vv, uu = np.mgrid[37:120, 0:800]
+    exact = lens.rays(np.stack([uu.ravel(), vv.ravel()], 1).astype(np.float64))
+    assert np.abs(x.ravel() - exact[:, 0]).max() * 5000 < 0.005
+    assert np.abs(y.ravel() - exact[:, 1]).max() * 5000 < 0.005
+    again_x, again_y = lens.ray_rows(50, 70)
+    assert np.array_equal(again_x, x[13:33]) and np.array_equal(again_y, y[13:33])
+    flat_x, flat_y = Lens(5000.0, (800, 600), shift=(2.0, 1.0)).ray_rows(10, 12)
+    assert flat_x.shape == (1, 800) and flat_y.shape == (2, 1)
+    assert flat_x[0, 0] == (0 - 2.0 - 399.5) / 5000 and flat_y[1, 0] == (11 - 1.0 - 299.5) / 5000

@@ -29,6 +29,7 @@ def test_the_published_example() -> None:
     assert fix.lat_deg == pytest.approx(48 + 7.038 / 60)
     assert fix.lon_deg == pytest.approx(11 + 31.0 / 60)
     assert (fix.height_m, fix.quality, fix.satellites, fix.hdop) == (545.4, 1, 8, 0.9)
+    assert fix.geoid_separation_m == 46.9
 
 
 @pytest.mark.parametrize(("lat", "lon"), [(-33.8568, 151.2153), (64.1466, -21.9426),
@@ -39,7 +40,21 @@ def test_encode_and_parse_round_trip_in_every_hemisphere(lat: float, lon: float)
     fix = parse_nmea(sentence.strip())
     assert isinstance(fix, GpsFix)
     assert (fix.lat_deg, fix.lon_deg) == pytest.approx((lat, lon), abs=1e-7)
-    assert fix.height_m == 58.25
+    assert fix.height_m == 58.25 and fix.geoid_separation_m == 47.3
+
+
+def test_the_geoid_separation_is_kept_and_its_absence_said() -> None:
+    """GGA's g.g: the geoid's height above the ellipsoid, kept with the fix (negative
+    where the geoid lies below it); a receiver that leaves it empty gives None, and an
+    average over fixes has one only when every fix sent it."""
+    low = parse_nmea(encode_gga(-8.0, 77.0, 12.0, geoid_separation_m=-102.5).strip())
+    none = parse_nmea(encode_gga(46.5, 7.5, 500.0, geoid_separation_m=None).strip())
+    assert isinstance(low, GpsFix) and low.geoid_separation_m == -102.5
+    assert isinstance(none, GpsFix) and none.geoid_separation_m is None
+    assert mean_position([low, low]).geoid_separation_m == -102.5
+    assert mean_position([low, none]).geoid_separation_m is None
+    with pytest.raises(FrameError, match="geoid separation unit 'F'"):
+        parse_nmea(sentence("GPGGA,1,4807.038,N,01131.000,E,1,08,0.9,545.4,M,47.0,F,,"))
 
 
 def sentence(body: str) -> bytes:
@@ -102,9 +117,10 @@ def test_the_simulator_through_a_url() -> None:
            "&other=0.5&garbage=0.3&bad_checksum=0.2&seed=4")
     with open_gps(url, timeout=2.0) as gps:
         fixes = [gps.read() for _ in range(8)]
-    lat, lon, height = mean_position(fixes)
-    assert lat == pytest.approx(-33.8568, abs=3 / 111_000)  # within 3 m
-    assert lon == pytest.approx(151.2153, abs=3 / 92_000) and height == 58.0
+    mean = mean_position(fixes)
+    assert mean.lat_deg == pytest.approx(-33.8568, abs=3 / 111_000)  # within 3 m
+    assert mean.lon_deg == pytest.approx(151.2153, abs=3 / 92_000) and mean.height_m == 58.0
+    assert mean.geoid_separation_m == pytest.approx(47.3) and mean.count == 8
 
 
 def test_simulator_options_are_checked() -> None:

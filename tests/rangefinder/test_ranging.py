@@ -7,11 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rigkit.geometry import NO_DISTORTION
+from rigkit.pipeline.lens import Lens
 from rigkit.rangefinder.ranging import (
     aperture_offset,
     depth_from_range,
-    profile_range_from_depth,
+    depth_on_ray,
     range_from_depth,
+    range_on_ray,
 )
 from rigkit.rig import rig_from_data
 from rigkit.synth import SceneTruth
@@ -81,6 +84,8 @@ def test_range_and_depth_recover_ray_traced_truth(truth: SceneTruth) -> None:
     profile = _profile(truth, [left.K[0, 2] + 0.5, left.K[1, 2] + 0.5])
     camera = profile.intrinsics((left.width, left.height))
     f, cx, cy = camera.focal_px, camera.cx_px, camera.cy_px
+    lens = Lens(f, (left.width, left.height), NO_DISTORTION,
+                profile.geometry().principal_points_px[0])
     for (u, v), z, r in zip(pixels, z_true, r_true, strict=True):
         intrinsics = {"fx": f, "fy": f, "cx": cx, "cy": cy, "offset_m": OFFSET}
         r_est = range_from_depth(z, (u, v), **intrinsics)
@@ -90,7 +95,10 @@ def test_range_and_depth_recover_ray_traced_truth(truth: SceneTruth) -> None:
         # Each recovers the other (to rounding, far tighter than the truth check).
         assert depth_from_range(r_est, (u, v), **intrinsics) == pytest.approx(z, rel=1e-12)
         assert range_from_depth(z_est, (u, v), **intrinsics) == pytest.approx(r, rel=1e-12)
-        assert profile_range_from_depth(profile, (left.width, left.height), z, (u, v)) == r_est
+        # The lens's ray (the laser comparison's and export's) is the pinhole's here.
+        ray = tuple(lens.rays(np.array([[u, v]]))[0])
+        assert range_on_ray(z, ray, OFFSET) == pytest.approx(r_est, rel=1e-12)
+        assert depth_on_ray(r, ray, OFFSET) == pytest.approx(z_est, rel=1e-12)
 
 
 def test_the_corner_convention_would_be_off_at_the_image_edge(truth: SceneTruth) -> None:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from rigkit.capture.session import LaserReading, Target
+from rigkit.capture.model import LaserReading, Target
 from rigkit.reporting.previews import (
     PREVIEW_WIDTH,
     _text,

@@ -3,16 +3,14 @@ the same words everywhere."""
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
 
-from rigkit.capture import RESULTS_DIR
 from rigkit.capture.comparisons import STATUS_NO_ESTIMATE, STATUS_NO_READING
-from rigkit.reporting.verdict import judge, row_label, run_shortfalls, two_sigma_pct
+from rigkit.reporting.verdict import judge, row_label, run_verdict, two_sigma_pct
 from rigkit.rig import load_rig
-from tests.conftest import make_row
+from tests.conftest import make_record, make_row
 
 ROOT = Path(__file__).resolve().parents[2]
 SYNTHETIC = load_rig(ROOT / "rigs" / "synthetic.yaml")  # 4608 px, exact: 2 sigma < 1 % at 300 m
@@ -97,11 +95,70 @@ def test_no_targets_is_not_done() -> None:
     assert not verdict.ok and "no laser targets" in verdict.headline
 
 
-def test_shortfalls_of_the_latest_run(tmp_path: Path) -> None:
-    assert run_shortfalls(tmp_path) == ()  # not processed yet
-    results = tmp_path / RESULTS_DIR
-    results.mkdir()
-    (results / "depth.json").write_text(json.dumps({"shortfalls": ["the offset ..."]}))
-    assert run_shortfalls(tmp_path) == ("the offset ...",)
-    (results / "depth.json").write_text("{not json")
-    assert run_shortfalls(tmp_path) == ()
+def test_a_runs_verdict_carries_what_its_record_says(tmp_path: Path) -> None:
+    """The verdict on a run from its record: the frames it stacked (the offset's share
+    of the 2σ shrinks with them), what it said falls short (no "done" then)."""
+    from rigkit.capture.actions import create_session
+
+    session = create_session(tmp_path / "ridge", ROOT / "rigs" / "p1000-tripod.yaml")
+    rows = [make_row("T1", 300.0, 0.2), make_row("T2", 320.0, -0.3)]
+    done = run_verdict(session, rows, P1000, make_record())
+    assert done.ok and done.shortfalls == ()
+    short = run_verdict(session, rows, P1000, make_record(shortfalls=("the offset ...",)))
+    assert not short.ok and short.shortfalls == ("the offset ...",)
+    assert "the run says it misses the goal" in short.headline
+    far = [make_row("T1", 500.0, 5.0)]
+    burst = run_verdict(session, far, P1000, make_record(burst_length=5)).targets[0]
+    assert burst.two_sigma_pct == two_sigma_pct(P1000, far[0].estimate_range_m, frames=5)
+
+
+# ------------------------------------------------------------ targets that calibrated the rig
+
+
+def test_targets_that_calibrated_the_rig_are_shown_and_not_counted() -> None:
+    """After calibrating from a session, its own targets cannot prove the scale they
+    made (on 81dfff3: "4/6 within 1 %", counted as proof)."""
+    rows = [make_row(f"T{i}", 300.0, error) for i, error in enumerate((0.2, 0.3, 1.4), 1)]
+    verdict = judge(rows, SYNTHETIC, calibrated={"T1", "T2"})
+    assert verdict.headline == ("0/1 independent targets within 1 % (2 more calibrated the "
+                                "rig: not counted): capture again")
+    assert [t.calibrated for t in verdict.targets] == [True, True, False]
+    assert verdict.targets[0].label == "within 1 % (calibrated the rig: not a check)"
+    assert verdict.advice[0].startswith("T3: 1.40 %")
+    alone = judge(rows[:2], SYNTHETIC, calibrated={"T1", "T2"})
+    assert not alone.ok and alone.headline.startswith("no independent target: all 2")
+
+
+def _calibrated_session(tmp_path: Path):
+    """A session (two targets) whose rig's provenance names its frames and its T1."""
+    from rigkit.capture.actions import create_session
+    from rigkit.capture.model import LaserReading
+    from rigkit.capture.targets import add_target
+    from rigkit.reporting.scale import frames_fingerprint
+    from rigkit.rig.provenance import Calibration, CalibrationSource
+
+    path = tmp_path / "ridge"
+    session = create_session(path, ROOT / "rigs" / "p1000-tripod.yaml")
+    for name, pixel in (("T1", (300.0, 260.0)), ("T2", (100.0, 320.0))):
+        session = add_target(session, name, pixel,
+                             readings=[LaserReading(300.0, "2026-04-12T08:01:12Z", "manual")])
+    source = CalibrationSource("ridge", str(path), frames_fingerprint(session), "run-1",
+                               "2026:04:12 08:00:00", {"T1": (300.0, 260.0), "T2": (1.0, 1.0)})
+    record = Calibration("2026-04-13T09:00:00Z", "p1000-tripod", (source,), 300.0)
+    return session, replace(session.rig(), calibration=record)
+
+
+def test_a_runs_verdict_marks_its_calibration_targets_and_says_the_source(
+        tmp_path: Path) -> None:
+    from rigkit.reporting.scale import calibration_targets, scale_source
+
+    session, profile = _calibrated_session(tmp_path)
+    # T2 moved since (another pixel): the calibration's T2 was another target.
+    assert calibration_targets(profile, session) == {"T1"}
+    rows = [make_row("T1", 300.0, 0.1), make_row("T2", 300.0, 0.4)]
+    verdict = run_verdict(session, rows, profile, make_record(session))
+    assert [t.calibrated for t in verdict.targets] == [True, False]
+    assert verdict.source == scale_source(profile) == (
+        "laser-calibrated 2026-04-13 from ridge (2 targets, taken 2026:04:12 08:00:00): "
+        "C_lb 2.000 +- 0.020 m")
+    assert "taped (C_lb 2.000 +- 0.020 m, not laser-calibrated)" == scale_source(session.rig())

@@ -263,3 +263,27 @@ def test_lens_error_enters_the_budget(tmp_path: Path) -> None:
 def test_ranges_must_be_positive() -> None:
     with pytest.raises(InputError, match="ranges must be > 0 m"):
         check_rig(load_rig(P1000), [0.0])
+
+
+def test_a_laser_calibrated_profile_uses_its_calibrated_tolerances() -> None:
+    """The P1000 with C_lb calibrated to 0.2 % at 300 m (f and C_lr left at 1 % each):
+    f and C_lr only stretch depth about the depth the calibration pinned, so 1 % is in
+    reach there (on 81dfff3 `rig check` said "1 % out of reach at every range")."""
+    from rigkit.rig.provenance import Calibration, CalibrationSource
+
+    taped = load_rig(ROOT / "rigs" / "p1000-tripod.yaml")
+    source = CalibrationSource("ridge", "/data/ridge", "ab" * 32, "run", "2026:04:12", {})
+    calibrated = replace(taped, baseline_lb=Baseline(2.0, 0.004),
+                         calibration=Calibration("2026-04-13T09:00:00Z", taped.name,
+                                                 (source,), 300.0))
+    assert any(f.code == "budget" for f in check_rig(taped, [300.0]).findings)
+    assert not any(f.code == "budget" for f in check_rig(calibrated, [300.0]).findings)
+    model = ErrorModel.from_profile(calibrated)
+    at_anchor = budget_row(model, 300.0)
+    assert at_anchor.from_focal_m == 0.0 and at_anchor.from_baseline_lr_m == 0.0
+    assert at_anchor.from_baseline_lb_m == pytest.approx(300.0 * 0.002)
+    assert budget_row(model, 150.0).from_focal_m == pytest.approx(150.0 * 0.01 * 0.5)
+    reach = range_reaching(model, 0.01)
+    assert reach is not None and reach > 300.0
+    total = budget_row(model, reach).total_fraction
+    assert total == pytest.approx(0.01, rel=1e-6)  # the root is where it reaches 1 %

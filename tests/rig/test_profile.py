@@ -308,3 +308,20 @@ def test_cli_reports_a_bad_profile_on_one_line(capsys: pytest.CaptureFixture[str
         f"rigkit rig: error: {path}: cameras.left.focal_length.mm: "
         "must be > 0 and <= 5000 mm, got -71.3\n"
     )
+
+
+def test_a_calibrated_profiles_provenance_reads_back(tmp_path: Path) -> None:
+    """Where the scale came from travels with the profile: sessions, their frames' hash,
+    targets used, held out and rejected, what changed."""
+    from rigkit.rig.provenance import Calibration, CalibrationSource
+
+    profile = load_rig(ROOT / "rigs" / "p1000-tripod.yaml")
+    source = CalibrationSource("ridge-0412", "/data/ridge-0412", "ab" * 32, "run-1",
+                               "2026:04:12 08:00:00", {"T1": (512.0, 300.5), "7": (1.0, 2.0)},
+                               held_out=("T3",), rejected=("T5",))
+    record = Calibration("2026-04-13T09:00:00Z", "p1000-tripod", (source,), 301.2,
+                         ("C_lb 2.0000 +- 0.0200 m -> 2.0310 +- 0.0040 m",),
+                         "leave-one-out: 2/2 targets within 1 %", 0.93, 3)
+    path = tmp_path / "cal.yaml"
+    path.write_text(dump_rig(dataclasses.replace(profile, calibration=record)))
+    assert load_rig(path).calibration == record

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from rigkit.errors import InputError
+from rigkit.imagefile.decode import load_grey
 from rigkit.pipeline import RigGeometry, estimate_depth
 from rigkit.pipeline.ambiguity import remove_ambiguity
 from rigkit.pipeline.features import match_views
-from rigkit.pipeline.images import load_grey
 from rigkit.synth import SynthParams, field_params, generate_scene, load_scene, write_scene
 from rigkit.synth.bound import (
     exact_tracks,

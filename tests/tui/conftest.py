@@ -58,6 +58,15 @@ async def wait_for(pilot, condition: Callable[[], bool], what: str, timeout: flo
         await pilot.pause(0.05)
 
 
+async def opened(pilot, app) -> None:
+    """Wait for the app's first step (or start) screen: its first screen says what it
+    opens while the steps' libraries load, and keys pressed there go nowhere."""
+    from rigkit.tui.app import OpeningScreen
+
+    await wait_for(pilot, lambda: not isinstance(app.screen, OpeningScreen)
+                   and app.screen.is_mounted, "the first step")
+
+
 def shown(app) -> str:
     """What the current screen's text widgets show, one line (for a failure message)."""
     from textual.widgets import Static

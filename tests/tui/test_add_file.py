@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from rigkit.synth.demo import Demo
-from tests.tui.conftest import side, synchronous, wait_for
+from tests.tui.conftest import opened, side, synchronous, wait_for
 from tests.tui.test_flow import SIZE, take_the_left_frame, watching_app
 
 
@@ -18,6 +18,7 @@ async def test_add_file_errors_name_the_path_just_given(demo: Demo) -> None:
     small = demo.root / "small.png"
     cv2.imwrite(str(small), np.zeros((10, 12), np.uint8))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)  # a burst to compare with: slow checks
         await pilot.press("o", *str(demo.root / "nowhere.png"), "enter")
         await wait_for(pilot, lambda: "nowhere.png: no such file" in side(app),

@@ -24,7 +24,7 @@ from rigkit.tui.screens import (
     TargetsScreen,
 )
 from rigkit.tui.widgets import PixelView
-from tests.tui.conftest import SETTLE_S, side, synchronous, text, wait_for, write_frame
+from tests.tui.conftest import SETTLE_S, opened, side, synchronous, text, wait_for, write_frame
 
 SIZE = (80, 24)
 
@@ -84,6 +84,7 @@ async def mark_target(pilot, app: FieldApp, moves: list[str], readings: int) -> 
 async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
     app = demo_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         assert isinstance(app.screen, RigScreen)
         assert "focal length" in text(app, "#rig")
         await pilot.press("n")
@@ -111,7 +112,8 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
                        "the export", 30)
         await pilot.press("q")
     assert sorted(p.name for p in (demo.session / "export").iterdir()) == [
-        f"{demo.session.name}.las", f"{demo.session.name}.ply"]
+        f"{demo.session.name}.export.json", f"{demo.session.name}.las",
+        f"{demo.session.name}.ply"]
     session = load_session(demo.session)
     assert taken(session) == ["left", "right", "back"]
     assert [len(t.readings) for t in session.targets] == [3, 3]
@@ -131,6 +133,7 @@ async def test_demo_flow_from_frames_to_verdict(demo: Demo) -> None:
 async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -> None:
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
         write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png", iso=100)
@@ -164,6 +167,7 @@ async def test_checks_catch_a_duplicate_frame_and_an_exif_mismatch(demo: Demo) -
 async def test_quit_mid_flow_resumes_where_it_stopped(demo: Demo) -> None:
     app = demo_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("n")
         await take_position(pilot, app, "left")
         await pilot.press("n")
@@ -172,6 +176,7 @@ async def test_quit_mid_flow_resumes_where_it_stopped(demo: Demo) -> None:
     assert taken(load_session(demo.session)) == ["left", "right"]
     app = demo_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         assert "parallax" in await take_position(pilot, app, "right")  # where it stopped
         await pilot.press("n")
         assert "✘" not in await take_position(pilot, app, "back")
@@ -186,6 +191,7 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
         session = add_position_frame(session, position, demo.scene / f"{position}.png")
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
         assert "no rangefinder port" in text(app, "LaserLine")
@@ -195,6 +201,7 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
     assert [t.name for t in load_session(session.path).targets] == ["T1"]
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and "T1" in text(app, "#targets"), "the targets, resumed")
         await pilot.press("m", *"160", "enter")  # far from the true ~200 m
@@ -206,9 +213,10 @@ async def test_typed_ranges_and_a_verdict_that_asks_for_more(demo: Demo) -> None
         verdict = text(app, "#verdict")
         assert "0/1 targets within" in verdict and "capture again" in verdict
         assert re.search(r"T1: 2\d\.\d\d %: outside 1 %, outside the 2σ", verdict)
-        # What one laser says of the scale, first (what to redo) and marked unchecked.
-        assert re.search(r"redo: lasers say C_lb = 1\.\d{3} \+- .* re-tape C_lb, or "
-                         r"calibrate .*\(from 1 target\(s\): unchecked\)", verdict, re.S)
+        # One laser 20 % off the tape: neither is fitted to the other; and the scale's source.
+        assert re.search(r"scale: lasers: T1 and the tape's C_lb disagree .* 1 target cannot "
+                         r"tell which is wrong", verdict, re.S)
+        assert "rig scale: taped (C_lb 2.000 +- 0.000 m, not laser-calibrated)" in verdict
         await pilot.press("b", "m", *"200", "enter", "n")  # one more reading: run again
         await wait_for(pilot, lambda: len(runs(session.path)) == 2, "the second run", 60)
         await wait_for(pilot, lambda: "targets within" in text(app, "#verdict"), "the verdict")
@@ -224,6 +232,7 @@ def runs(session: Path) -> set[str]:
 async def test_start_screen_opens_a_session_or_starts_one(demo: Demo) -> None:
     app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("tab", *"ridge-9 nowhere.yaml", "enter")
         assert "nowhere.yaml" in text(app, "#message")
         assert not (demo.capture / "ridge-9").exists()
@@ -235,6 +244,7 @@ async def test_start_screen_opens_a_session_or_starts_one(demo: Demo) -> None:
     assert load_session(demo.capture / "ridge-9").rig().name.startswith("synthetic")
     app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         table = app.screen.query_one("#sessions")
         assert table.row_count == 2  # demo and ridge-9, sorted by name
         await pilot.press("down", "enter")
@@ -252,6 +262,7 @@ async def test_sessions_are_listed_by_folder_and_a_broken_one_says_why(demo: Dem
     (broken / "session.yaml").write_text("format: nothing\n")
     app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         table = app.screen.query_one("#sessions")
         names = [str(table.get_row_at(i)[0]) for i in range(table.row_count)]
         assert names == ["broken", "copy[b]x", demo.session.name]
@@ -265,6 +276,7 @@ async def test_a_new_session_stays_inside_the_capture_folder(demo: Demo) -> None
     # Before: ``../../x`` or an absolute path created a session outside it.
     app = FieldApp(FieldConfig(capture=demo.capture, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("tab")
         for name in ("../../escaped", str(demo.root / "abs")):
             app.screen.query_one("#new").value = f"{name} {demo.rig}"
@@ -281,6 +293,7 @@ async def test_a_frame_declaring_a_huge_size_is_refused_and_the_app_goes_on(demo
 
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
         data = bytearray((demo.scene / "left.png").read_bytes())
@@ -308,6 +321,7 @@ async def test_actions_name_the_selected_target_and_a_typo_never_becomes_a_readi
         session = add_position_frame(session, position, demo.scene / f"{position}.png")
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
         await pilot.press("enter", "right", "right", "enter")  # T1, then T2 (selected)
@@ -333,6 +347,7 @@ async def test_moving_on_without_a_reading_asks_first(demo: Demo) -> None:
         session = add_position_frame(session, position, demo.scene / f"{position}.png")
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
         await pilot.press("n")
         await pilot.pause(0.2)
@@ -346,6 +361,7 @@ async def test_a_failed_check_asks_before_moving_on(demo: Demo) -> None:
     # Before: n moved on after "the zoom changed" without a word.
     _, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
@@ -364,6 +380,7 @@ async def test_a_frame_of_the_next_position_is_held_back_with_a_question(demo: D
     # Before: a right frame dropped in before n joined the left burst with green ticks.
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "right.png")  # too early
         await wait_for(pilot, lambda: "does not match the left burst" in
@@ -382,6 +399,7 @@ async def test_next_past_empty_positions_reaches_targets_without_a_crash(demo: D
     app with an IndexError and exit status 0."""
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "the rig")
         for _ in range(4):
             await pilot.press("n")
@@ -414,6 +432,7 @@ async def test_a_retake_after_a_failed_frame_is_filed_where_it_was_taken(demo: D
     as "taken from another position" and offered for the back position."""
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "right", "the right screen")
@@ -442,6 +461,7 @@ async def test_a_typo_asks_first_and_x_drops_the_reading_under_the_cursor(demo: 
         return [r.slope_distance_m for r in load_session(session.path).targets[0].readings]
 
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
         await pilot.press("enter")  # T1
@@ -473,6 +493,7 @@ async def test_the_verdict_shows_stray_readings_as_process_does(demo: Demo) -> N
     add_target(session, "T1", (200.0, 150.0), readings=readings)
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen)
                        and "not processed yet" in text(app, "#stage"), "processing")
         await pilot.press("r")  # reopened at processing, it waits to be asked
@@ -488,6 +509,7 @@ async def test_x_on_a_frame_asks_before_it_is_taken_out(demo: Demo) -> None:
     """Issue 37, item 8: `x` took a frame out at once; frames now ask, as targets do."""
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)
         await pilot.press("x")
         await pilot.pause()

@@ -18,7 +18,7 @@ from rigkit.synth.demo import Demo
 from rigkit.tui.app import Arrival, FieldApp, LinkNews
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.messages import Goto
-from tests.tui.conftest import SETTLE_S, synchronous, wait_for, write_frame
+from tests.tui.conftest import SETTLE_S, opened, synchronous, wait_for, write_frame
 from tests.tui.test_operator import other_scene
 from tests.tui.test_resume import framed
 
@@ -61,6 +61,7 @@ async def test_random_keys_and_sizes_lose_nothing_and_file_nothing_elsewhere(
     rng = random.Random(SEED)
     visited: set[str | None] = set()
     async with app.run_test(size=(80, 24)) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: app.step == "rig", "the rig step")
         press = 0
         for step in SCHEDULE:  # each step gets its share of keys (which may leave it)

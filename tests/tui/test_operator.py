@@ -28,7 +28,7 @@ from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, ProcessScreen, RigScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
-from tests.tui.conftest import SETTLE_S, side, synchronous, text, wait_for, write_frame
+from tests.tui.conftest import SETTLE_S, opened, side, synchronous, text, wait_for, write_frame
 from tests.tui.test_flow import SIZE, take_position, take_the_left_frame, watching_app
 from tests.tui.test_resume import READING, app_on, framed
 
@@ -86,6 +86,7 @@ async def test_fast_keys_never_crash_and_the_step_shown_is_the_one_resumed(demo:
     set_field_step(session.path, "back")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the back step")
         for _ in range(12):
             await pilot.press("n", "n", "b", "n", "b", "b")
@@ -119,6 +120,7 @@ async def test_a_position_visited_again_shows_its_checks_without_checking_again(
     set_field_step(session.path, "left")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_position(pilot, app, "left")
         for _ in range(4):
             await pilot.press("n")
@@ -142,6 +144,7 @@ async def test_shots_fired_on_any_screen_are_kept(demo: Demo) -> None:
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, port=port,
                                graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "the rig step")
         await wait_for(pilot, lambda: len(readings_of(session.path)["T1"]) >= 3,
                        "three shots saved on the rig step")
@@ -162,6 +165,7 @@ async def test_shots_without_a_target_are_held_said_and_saved_once_one_is_marked
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False,
                                port="sim://trupulse?interval=0.1&distance=201.5"))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
                        and "held: mark or select a target" in laser(app),
                        "the held shots said on the back step")
@@ -188,6 +192,7 @@ async def test_a_frame_of_another_scene_is_filed_only_by_its_own_keys(demo: Demo
     position" was the first thing offered for a frame of another scene."""
     session, app = watching_app(demo)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)
         other_scene(demo.card / "DSCN0002.PNG", demo.scene / "left.png")
         await wait_for(pilot, lambda: "does not match the left burst" in
@@ -228,6 +233,7 @@ async def test_the_verdict_grows_with_the_terminal_scrolls_by_keys_and_says_the_
     process_session(session.path, new_run_id())
     app = app_on(demo, session.path)
     async with app.run_test(size=(80, 44)) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
         box = app.screen.query_one("#verdict-box")
         assert box.region.height > 10  # grows with the terminal
@@ -257,6 +263,7 @@ async def test_r_during_the_run_neither_cancels_it_nor_reports_it_busy(demo: Dem
     set_field_step(session.path, "targets")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen)
@@ -282,6 +289,7 @@ async def test_c_lb_is_printed_as_the_profile_gives_it(demo: Demo) -> None:
     set_field_step(session.path, "back")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         shown = await take_position(pilot, app, "back")
         assert "at C_lb = 2.03 m" in shown
         await pilot.press("b", "b", "b")
@@ -303,6 +311,7 @@ async def test_a_reading_replaces_the_quiet_note(demo: Demo) -> None:
     set_field_step(session.path, "targets")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
         app.post_message(LinkNews(LinkStatus(True, quiet_note(LineStats(), "trupulse", 10.0))))
         await wait_for(pilot, lambda: "nothing received" in laser(app), "the note")
@@ -336,6 +345,7 @@ async def test_a_right_frame_at_back_is_told_to_move_not_to_retape(demo: Demo) -
     set_field_step(session.path, "back")
     app = app_on(demo, session.path, watch=demo.card)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the back step")
         write_frame(demo.card / "DSCN0009.PNG", demo.scene / "right.png", iso=100)
         shown = await take_position(pilot, app, "back")
@@ -352,6 +362,7 @@ async def test_c_on_a_frame_the_watcher_is_taking_files_it_once_without_a_word(
     app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
                                graphics=False, settle_s=1.0))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, RigScreen), "the rig")
         write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")
         await pilot.press("n")  # the left step lists it on the card before it settles
@@ -371,6 +382,7 @@ async def test_a_reading_is_dropped_only_on_a_second_x(demo: Demo) -> None:
     set_field_step(session.path, "targets")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
         await pilot.press("x")
         await pilot.pause(0.2)
@@ -392,6 +404,7 @@ async def test_one_port_for_the_whole_run_never_in_use_by_ourselves(demo: Demo) 
                                    graphics=False))
         said: list[str] = []
         async with app.run_test(size=SIZE) as pilot:
+            await opened(pilot, app)
             for _ in range(4):
                 await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen),
                                "the targets")
@@ -411,6 +424,7 @@ async def test_a_deleted_targets_name_is_never_given_again(demo: Demo) -> None:
     set_field_step(session.path, "targets")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
         await pilot.press("enter", "right", "right", "enter", "d", "d")  # T1, T2; T2 deleted
@@ -428,6 +442,7 @@ async def test_a_typed_range_that_would_be_a_stray_is_asked_and_strays_are_marke
     set_field_step(session.path, "targets")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
         await pilot.press("m", *"209", "enter")
         await pilot.pause(0.3)
@@ -459,6 +474,7 @@ async def test_an_arrival_shows_before_its_comparison_and_checks_go_in_order(
     session, app = watching_app(demo)
     shown: list[str] = []
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)
         write_frame(demo.card / "DSCN0002.PNG", demo.scene / "left.png", iso=100)
         start = time.monotonic()
@@ -485,6 +501,7 @@ async def test_ctrl_c_quits_as_the_key_bar_says_q_does(demo: Demo) -> None:
     session = framed(demo, "ctrl-c")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, (PositionScreen, RigScreen,
                                                                TargetsScreen, ProcessScreen)),
                        "a step")
@@ -501,6 +518,7 @@ async def test_e_before_processing_says_press_r(demo: Demo) -> None:
     set_field_step(session.path, "process")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "not processed yet" in text(app, "#stage"), "the step")
         await pilot.press("e")
         await pilot.pause(0.2)
@@ -517,6 +535,7 @@ async def test_the_position_keys_are_in_the_key_bar_and_the_checks_fit(demo: Dem
     set_field_step(session.path, "back")
     app = app_on(demo, session.path, watch=demo.card)
     async with app.run_test(size=(60, 20)) as pilot:
+        await opened(pilot, app)
         await take_position(pilot, app, "back")
         await wait_for(pilot, lambda: "DSCN0007" in text(app, "#card"), "the card line")
         assert {"o", "c", "x", "n", "b", "q"} <= key_bar(app)
@@ -536,6 +555,7 @@ async def test_a_frame_that_does_not_match_is_said_in_plain_words(demo: Demo) ->
     set_field_step(session.path, "right")
     app = app_on(demo, session.path, watch=demo.card)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the right step")
         other_scene(demo.card / "DSCN0004.PNG", demo.scene / "left.png")
         shown = await take_position(pilot, app, "right")
@@ -557,6 +577,7 @@ async def test_the_demo_fires_only_where_there_will_be_depth(demo: Demo) -> None
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, demo=demo,
                                graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the left view")
         await pilot.press(*["shift+left"] * 30, *["shift+up"] * 30, "enter")

@@ -11,12 +11,13 @@ from rigkit.batch import new_run_id, process_session
 from rigkit.capture import LaserReading, Session, Target, create_session, load_session
 from rigkit.capture.field import add_position_frame, frames_at, resume_step
 from rigkit.capture.positioning import set_field_step
-from rigkit.capture.session import RESULTS_DIR, save_session
+from rigkit.capture.results import RESULTS_DIR
+from rigkit.capture.session import save_session
 from rigkit.synth.demo import Demo
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, ProcessScreen
-from tests.tui.conftest import SETTLE_S, synchronous, text, wait_for, write_frame
+from tests.tui.conftest import SETTLE_S, opened, synchronous, text, wait_for, write_frame
 from tests.tui.test_flow import SIZE, take_position
 
 READING = LaserReading(slope_distance_m=200.0, time_utc="2026-11-26T10:00:00Z",
@@ -48,6 +49,7 @@ async def test_quit_while_retaking_the_right_burst_reopens_at_right(demo: Demo) 
     set_field_step(session.path, "right")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         assert "parallax" in await take_position(pilot, app, "right")
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "back", "the back screen")
@@ -62,6 +64,7 @@ async def test_reopened_at_processing_it_waits_to_be_asked(demo: Demo) -> None:
     set_field_step(session.path, "process")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen), "processing")
         await pilot.pause(0.3)
         assert "not processed yet; r: process" in text(app, "#stage")
@@ -78,6 +81,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
     process_session(session.path, new_run_id())
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
         assert "targets within" in text(app, "#verdict")
     late = Target(name="T2", pixel=(100.0, 100.0), window_px=9, readings=(READING,))
@@ -85,6 +89,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
                          targets=(*load_session(session.path).targets, late)))
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "before the targets changed" in text(app, "#stage"),
                        "why the run is not shown")
         assert "process again" in text(app, "#stage") and text(app, "#verdict").strip() == ""
@@ -96,6 +101,14 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
         await wait_for(pilot, lambda: "comparisons.csv is unreadable" in text(app, "#stage"),
                        "the damaged results said")
         assert app.is_running and text(app, "#verdict").strip() == ""
+    record = session.path / RESULTS_DIR / "depth.json"  # hostile numbers in the record
+    record.write_text(record.read_text().replace('"offset_depth_error_fraction": ',
+                                                 '"offset_depth_error_fraction": 1e200, "_": '))
+    app = app_on(demo, session.path)
+    async with app.run_test(size=SIZE) as pilot:  # before: the TUI ended on opening
+        await wait_for(pilot, lambda: "offset_depth_error_fraction" in text(app, "#stage"),
+                       "the refused record said")
+        assert "1e+200" in text(app, "#stage") and app.is_running
 
 
 @synchronous
@@ -111,6 +124,7 @@ async def test_a_verdict_longer_than_its_box_scrolls_rather_than_hides(demo: Dem
     process_session(session.path, new_run_id())
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
         assert text(app, "#verdict").count("is far from the others") == 4
         box = app.screen.query_one("#verdict-box")
@@ -137,6 +151,7 @@ async def test_frames_left_on_the_card_are_offered_again(demo: Demo) -> None:
     write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")  # while closed
     app = app_on(demo, session.path, watch=demo.card)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
                        and "DSCN0001.PNG" in text(app, "#card"), "the card's frame offered")

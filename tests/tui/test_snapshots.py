@@ -20,8 +20,8 @@ from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
-from tests.conftest import rig_file
-from tests.tui.conftest import side, wait_for
+from tests.conftest import make_record, rig_file
+from tests.tui.conftest import side, text, wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
@@ -115,5 +115,16 @@ def test_results_of_a_run(snap_compare, capture: Path) -> None:
                              readings=[LaserReading(300.0, "2026-04-12T08:01:12Z", "manual")])
     (path / "results").mkdir()
     np.save(path / "results" / "depth.npy", 250.0 + drawn_card().astype(np.float32) / 2.5)
+    record = make_record(session, median_depth_m=None)  # no scale line
+    (path / "results" / "depth.json").write_text(record.to_json())
     append_rows(path / LOG_NAME, [_row("T1", 301.2, 0.8), _row("T2", 288.0, -4.6)])
-    assert snap_compare(app_for(capture, path), terminal_size=SIZE)
+    app = app_for(capture, path)
+
+    async def shown_run(pilot) -> None:
+        # The run is read off the screen's thread; the table sizes its columns to the
+        # rows once the app is idle: under load the picture was taken in between.
+        await wait_for(pilot, lambda: app.screen.query("#stage")
+                       and "latest run shown" in text(app, "#stage"), "the run")
+        await pilot.pause()
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=shown_run)

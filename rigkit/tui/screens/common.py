@@ -15,7 +15,7 @@ from textual.widgets import Static
 
 from rigkit.capture import Session
 from rigkit.capture.field import next_move
-from rigkit.capture.session import FIELD_STEPS
+from rigkit.capture.model import FIELD_STEPS
 from rigkit.rig.findings import Finding
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.laser import LaserDesk

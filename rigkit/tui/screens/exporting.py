@@ -1,7 +1,7 @@
 """The verdict screen's export: ``e`` writes the session's latest results into
 ``SESSION/export/`` (PLY and LAS: on the map when the session knows where the tripod
-stood and its targets give the camera's orientation, else in the camera frame) in a
-worker thread, and says where on the screen's ``#stage`` line."""
+stood and its targets give the camera's orientation, else in the camera frame, saying
+why) in a worker thread, and says where on the screen's ``#stage`` line."""
 
 from __future__ import annotations
 
@@ -53,5 +53,6 @@ def _exported(done: Exported) -> str:
     where = "on the map" if done.georef is not None else "in the camera frame"
     folder = done.files[0].parent
     names = ", ".join(f.name for f in done.files)
+    why = "" if done.note is None else f" [$warning](not on the map: {escape(done.note)})[/]"
     return (f"[b $success]✔[/] {done.points} points {where}: "
-            f"{escape(names)} in {escape(str(folder))}")
+            f"{escape(names)} in {escape(str(folder))}{why}")

@@ -103,7 +103,9 @@ class PositionScreen(StepScreen):
         yield Footer(compact=True)
 
     def _checklist(self) -> str:
-        c_lb = f"{metres(session_of(self).rig().baseline_lb.value_m)} in the profile"
+        rig = session_of(self).rig()
+        c_lb = f"{metres(rig.baseline_lb.value_m)} in the profile" + (
+            " (laser-calibrated: the same set-up)" if rig.calibration else "")
         items = [item.format(c_lb=c_lb) for item in CHECKLISTS[self.position]]
         return "\n".join(f"• {i}" for i in items)
 

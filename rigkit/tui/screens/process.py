@@ -19,13 +19,12 @@ from textual.worker import get_current_worker
 
 from rigkit.batch import new_run_id, process_session
 from rigkit.batch.session import stray_warnings
-from rigkit.capture import RESULTS_DIR, Session, frame_problems, read_rows
-from rigkit.capture.actions import stale_results
-from rigkit.capture.comparisons import Comparison, latest_run
+from rigkit.capture import Session, frame_problems, read_rows
+from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run
+from rigkit.capture.results import RunFiles, session_record, stale_results
 from rigkit.errors import RigkitError, environment_message
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
-from rigkit.reporting.scale import run_reference, run_scale_note
-from rigkit.reporting.verdict import Verdict, judge, run_shortfalls
+from rigkit.reporting.verdict import Verdict, run_verdict
 from rigkit.tui.screens.common import LaserLine, escape, host, session_of
 from rigkit.tui.screens.exporting import ExportingScreen
 from rigkit.tui.widgets import PixelView
@@ -105,21 +104,25 @@ class ProcessScreen(ExportingScreen):
         targets as the run had them, and every frame there (what ``session show`` says of
         it; the frames' hashes are read here, off the screen's thread)."""
         session = session_of(self)
+        verdict = None
         try:  # a damaged log or results/ is said, and r processes again
-            rows = latest_run(read_rows(session.path / "comparisons.csv")) \
-                if (session.path / "comparisons.csv").is_file() else []
-            done = bool(rows) and (session.path / RESULTS_DIR / "depth.npy").is_file()
+            rows = latest_run(read_rows(session.path / LOG_NAME)) \
+                if (session.path / LOG_NAME).is_file() else []
+            done = bool(rows) and RunFiles.of_session(session.path).depth.is_file()
             why = (stale_results(session) or "; ".join(frame_problems(session))) if done else ""
+            record = session_record(session.path) if done and not why else None
+            if record is not None:  # the verdict rigkit process gave this run
+                verdict = run_verdict(session, rows, session.rig(), record)
         except RigkitError as exc:
             done, why = True, str(exc)
         except OSError as exc:
             done, why = True, environment_message(exc)
         if not done:
             self.deliver(self._stage, "not processed yet; r: process")
-        elif why:
-            self.deliver(self._failed, f"{why}; r: process again")
+        elif why or verdict is None:
+            self.deliver(self._failed, f"{why or 'no results'}; r: process again")
         else:
-            self.deliver(self._show, shown(session, rows))
+            self.deliver(self._show, shown(session, rows, verdict))
             self.deliver(self._stage, "latest run shown; r: process again")
 
     def action_run(self) -> None:
@@ -160,7 +163,8 @@ class ProcessScreen(ExportingScreen):
 
         try:
             outcome = process_session(path, new_run_id(), progress=progress)
-            view = shown(session_of(self), list(outcome.rows))
+            view = None if outcome.verdict is None else \
+                shown(session_of(self), list(outcome.rows), outcome.verdict)
         except Stopped:
             return
         except RigkitError as exc:
@@ -169,7 +173,8 @@ class ProcessScreen(ExportingScreen):
         except OSError as exc:  # a full disk, a read-only session
             self.deliver(self._failed, environment_message(exc))
             return
-        self.deliver(self._show, view)
+        if view is not None:
+            self.deliver(self._show, view)
         self.deliver(self._stage, "done; r: process again")
 
     def on_unmount(self) -> None:
@@ -208,20 +213,18 @@ class ProcessScreen(ExportingScreen):
         self.query_one("#verdict-box", VerticalScroll).scroll_relative(y=lines, animate=False)
 
 
-def shown(session: Session, rows: Sequence[Comparison]) -> Shown:
-    """A run of ``session`` (its comparison ``rows``) as the screen shows it (reads the
-    run's files: call it off the screen's thread)."""
-    shortfalls = run_shortfalls(session.path)
-    verdict = judge(rows, session.rig(), frames=session.burst_length, shortfalls=shortfalls,
-                    scale=run_scale_note(rows, session.rig(), run_reference(session.path)))
+def shown(session: Session, rows: Sequence[Comparison], verdict: Verdict) -> Shown:
+    """A run of ``session`` (its comparison ``rows`` and the verdict the run returned or,
+    reopened, the one :func:`run_verdict` gives its record: the same words) as the
+    screen shows it (reads the run's depth: call it off the screen's thread)."""
     table = []
     for row, target in zip(rows, verdict.targets, strict=True):
         error = "" if math.isnan(row.error_pct) else f"{row.error_pct:+.2f} %"
         table.append((row.target, _num(row.laser_range_m), _num(row.estimate_range_m), error,
-                      "✔" if target.ok else "✘"))
-    markup = verdict_markup(verdict, shortfalls, stray_warnings(session))
+                      "cal" if target.calibrated else "✔" if target.ok else "✘"))
+    markup = verdict_markup(verdict, stray_warnings(session))  # what `rigkit process` says
     try:
-        depth = np.load(session.path / RESULTS_DIR / "depth.npy")
+        depth = np.load(RunFiles.of_session(session.path).depth)
     except (OSError, ValueError):
         return Shown(tuple(table), markup, None, 0.0, 0.0)
     lo, hi = depth_range(depth)
@@ -229,26 +232,29 @@ def shown(session: Session, rows: Sequence[Comparison]) -> Shown:
     return Shown(tuple(table), markup, image, lo, hi)
 
 
-def verdict_markup(verdict: Verdict, shortfalls: Sequence[str], strays: Sequence[str]) -> str:
+def verdict_markup(verdict: Verdict, strays: Sequence[str]) -> str:
     """The verdict, most important first: the headline, then what to redo (:func:`redo`),
-    then the rest of the advice, what the run found, the scale, and each target."""
+    then the rest of the advice, what the run found, the scale and where it came from,
+    and each target."""
     colour = "$success" if verdict.ok else "$error"
     lines = [f"[b {colour}]{escape(verdict.headline)}[/]"]
-    first = redo(verdict, shortfalls)
+    first = redo(verdict)
     if first:
         lines.append(f"[b $warning]redo:[/] {escape(first)}")
     names = tuple(f"{t.target}: " for t in verdict.targets)
     actions = [a for a in verdict.advice if not a.startswith(names) and a != first]
     lines += [f"- {escape(a)}" for a in actions]
-    lines += [f"[$warning]{escape(s)}[/]" for s in shortfalls if s != first]
+    lines += [f"[$warning]{escape(s)}[/]" for s in verdict.shortfalls if s != first]
     if verdict.scale and verdict.scale != first:
         lines.append(f"[b]scale:[/] {escape(verdict.scale)}")
+    if verdict.source:
+        lines.append(f"[b]rig scale:[/] {escape(verdict.source)}")
     lines += [f"- {escape(a)}" for a in verdict.advice if a.startswith(names)]
     lines += [f"[$warning]{escape(s)}[/]" for s in strays]
     return "\n".join(lines)
 
 
-def redo(verdict: Verdict, shortfalls: Sequence[str]) -> str:
+def redo(verdict: Verdict) -> str:
     """What to do next after a verdict that is not "done", one line ("" when done): the
     scale where the lasers say the taped C_lb is off (every target follows it), then
     what the run says it misses the goal by (a burst too short, the offset), then the
@@ -257,8 +263,8 @@ def redo(verdict: Verdict, shortfalls: Sequence[str]) -> str:
         return ""
     if "re-tape" in verdict.scale:
         return verdict.scale
-    if shortfalls:
-        return shortfalls[0]
+    if verdict.shortfalls:
+        return verdict.shortfalls[0]
     names = tuple(f"{t.target}: " for t in verdict.targets)
     actions = [a for a in verdict.advice if not a.startswith(names)]
     return actions[0] if actions else ""

@@ -7,6 +7,7 @@ from textual.containers import VerticalScroll
 from textual.widgets import Footer, Header, Static
 
 from rigkit.capture.field import metres
+from rigkit.reporting.scale import scale_source
 from rigkit.rig.budget import budget_row
 from rigkit.rig.check import check_rig
 from rigkit.rig.optics import fov_deg
@@ -43,6 +44,7 @@ class RigScreen(StepScreen):
             f"field of view  {fov_deg(focal, width):.2f} x {fov_deg(focal, height):.2f} deg",
             f"baselines      C_lr {metres(profile.baseline_lr.value_m)}, "
             f"C_lb {metres(profile.baseline_lb.value_m)}",
+            f"scale          {escape(scale_source(profile))}",
             f"{f'at {nominal:g} m':<14} disparity {row.disparity_px:.1f} px, depth error "
             f"± {row.total_m:.1f} m ({100 * row.total_fraction:.1f} %)",
             "",

@@ -13,10 +13,10 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import Footer, Header, Input, Static
 
 from rigkit.capture import Session, Target, add_target
-from rigkit.capture.actions import remove_reading, remove_target
 from rigkit.capture.field import frames_at
+from rigkit.capture.model import stray_readings
 from rigkit.capture.readings import implied_range, next_target_name, reading_doubt
-from rigkit.capture.session import stray_readings
+from rigkit.capture.targets import remove_reading, remove_target
 from rigkit.capture.views import check_image
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.ranging import parse_typed_range

@@ -21,7 +21,7 @@ and on rendered frames; docs/sessions.md, "Frames with no picture"):
   when noise per pixel is twice the scene's contrast) but 1/64 of white noise's.
 * **cut short**: the bottom rows are one flat value across the whole width, neither
   black nor white: what a JPEG decoder fills in after the data ends (the decoders'
-  own complaints are read too, :func:`rigkit.pipeline.images.check_decoder_output`).
+  own complaints are read too, :func:`rigkit.imagefile.decode.check_decoder_output`).
 """
 
 from __future__ import annotations

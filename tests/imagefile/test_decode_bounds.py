@@ -15,11 +15,12 @@ import numpy as np
 import pytest
 import tifffile
 
-from rigkit.capture.imagesize import header_size
-from rigkit.capture.rawio import decode_raw, frame_size, load_linear_grey
 from rigkit.errors import InputError
 from rigkit.export.source import file_depth
-from rigkit.pipeline.images import load_grey
+from rigkit.imagefile.decode import load_grey
+from rigkit.imagefile.imagesize import header_size
+from rigkit.imagefile.rawio import decode_raw, frame_size, load_linear_grey
+from tests.conftest import make_record
 from tests.dngutil import bayer_from_grey, write_dng
 from tests.export.helpers import depth_plane
 
@@ -211,7 +212,7 @@ def test_a_depth_maps_grey_under_a_folder_named_with_0xff_is_read(tmp_path: Path
     np.save(folder / "d.sigma.npy", depth * np.float32(0.01))
     (folder / "d.grey.png").write_bytes(
         cv2.imencode(".png", np.full(depth.shape, 77, np.uint8))[1].tobytes())
-    (folder / "d.json").write_text('{"rig": {"name": "bench", "focal_px": 4000.0}}')
+    (folder / "d.json").write_text(make_record(image_size_px=depth.shape[::-1]).to_json())
     assert set(np.unique(file_depth(folder / "d.npy").grey)) == {77}
 
 
@@ -220,6 +221,6 @@ def test_opencv_itself_refuses_beyond_the_largest_frame() -> None:
     import os
 
     import rigkit  # noqa: F401  (sets it before cv2 is first imported)
-    from rigkit.capture.imagesize import MAX_FRAME_PIXELS
+    from rigkit.imagefile.imagesize import MAX_FRAME_PIXELS
 
     assert int(os.environ["OPENCV_IO_MAX_IMAGE_PIXELS"]) == MAX_FRAME_PIXELS

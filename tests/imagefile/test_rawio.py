@@ -1,4 +1,4 @@
-"""rigkit.capture.rawio: RAW and plain-image frames -> grey, with real (generated) DNG files."""
+"""rigkit.imagefile.rawio: RAW and plain-image frames -> grey, with real (generated) DNG files."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import cv2
 import numpy as np
 import pytest
 
-from rigkit.capture import rawio
-from rigkit.capture.exif import read_exif
-from rigkit.capture.rawio import decode_raw, is_raw, linear_grey, load_linear_grey, to_pipeline
 from rigkit.errors import InputError
+from rigkit.imagefile import rawio
+from rigkit.imagefile.exif import read_exif
+from rigkit.imagefile.rawio import decode_raw, is_raw, linear_grey, load_linear_grey, to_pipeline
 from tests.dngutil import write_dng
 
 H, W = 48, 64  # Bayer mosaic size (rows, columns)

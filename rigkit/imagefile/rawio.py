@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from rigkit.capture.imagesize import check_size, header_size
-from rigkit.capture.picture import picture_problem
 from rigkit.core.chatter import captured_stderr
 from rigkit.core.files import write_png
 from rigkit.core.safefs import require_file
 from rigkit.errors import InputError
-from rigkit.pipeline.images import check_decoder_output, decode_grey, read_image_file
+from rigkit.imagefile.decode import check_decoder_output, decode_grey, read_image_file
+from rigkit.imagefile.imagesize import HEAD_BYTES, check_size, header_size
+from rigkit.imagefile.picture import picture_problem
 
 if TYPE_CHECKING:
     import rawpy
@@ -134,7 +134,7 @@ def decode_raw(path: str | Path, expected: tuple[int, int] | None = None,
 
     The size LibRaw will output is checked before it decodes (against ``expected``
     (W, H), ``whose`` naming it, and the largest frame rigkit decodes:
-    :func:`rigkit.capture.imagesize.check_size`).
+    :func:`rigkit.imagefile.imagesize.check_size`).
 
     Raises InputError naming the file when it is missing, not a RAW file LibRaw
     supports (a JPEG or PNG with a RAW file name, a GoPro GPR, an unknown camera), too
@@ -244,11 +244,11 @@ def load_linear_grey(
     pipeline only needs consistent brightness, not linear data. As for RAW files, the
     EXIF Orientation is not applied.
 
-    A freshly decoded frame must hold a picture (:func:`rigkit.capture.picture.
+    A freshly decoded frame must hold a picture (:func:`rigkit.imagefile.picture.
     picture_problem`); only such a frame is cached, so a cached one has passed. Its
     size must be ``expected`` (W, H) where given (``whose`` says whose size that is), and
     within the largest frame rigkit decodes: checked on the file's header before it is
-    decoded, and on what was decoded (:func:`rigkit.capture.imagesize.check_size`). An
+    decoded, and on what was decoded (:func:`rigkit.imagefile.imagesize.check_size`). An
     ordinary image whose header cannot be read is refused, not decoded.
 
     Raises InputError naming the file when it is missing, cannot be decoded, holds no
@@ -304,6 +304,24 @@ def frame_size(path: str | Path) -> tuple[int, int]:
             return int(raw.sizes.width), int(raw.sizes.height)
     except rawpy.LibRawError as exc:
         raise InputError(f"{path}: {_libraw_reason(exc)}") from None
+
+
+def declared_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) px of the frame at ``path`` as its header declares it, without
+    decoding pixels: LibRaw's output size for a RAW file (:func:`frame_size`), the PNG,
+    JPEG or TIFF header's in its first :data:`~rigkit.imagefile.imagesize.HEAD_BYTES`
+    for an ordinary image (decoded, as :func:`frame_size` does, where the header is not
+    there: a TIFF whose directory follows its pixels). InputError as for decoding."""
+    path = Path(path)
+    if is_raw(path):
+        return frame_size(path)
+    require_file(path)
+    with path.open("rb") as handle:
+        head = handle.read(HEAD_BYTES)
+    try:
+        return header_size(path, head)
+    except InputError:
+        return frame_size(path)
 
 
 def _scaled_to_255(frame: np.ndarray, overwrite: bool = False) -> np.ndarray:
@@ -374,7 +392,7 @@ def _read_plain_grey(path: Path, expected: tuple[int, int] | None = None,
     """PNG/TIFF/JPEG -> (H, W) float32 in [0, 1] (not linearised, orientation ignored).
 
     The file is read once; the size its header declares is checked on those bytes
-    before they are decoded (:func:`rigkit.capture.imagesize.check_size`: the largest
+    before they are decoded (:func:`rigkit.imagefile.imagesize.check_size`: the largest
     frame, and ``expected`` (W, H) where given). InputError naming the file when the
     header cannot be read (the file is then not decoded), or as for decoding."""
     data = read_image_file(path)

@@ -20,7 +20,7 @@ the TIFF blocks the container carries:
 ISO where the EXIF IFD has none comes from the maker note (Nikon ``ISOSetting``) or
 the PanasonicRaw IFD 0 tag 0x0017. The image size is not read from EXIF at all: in RAW
 files it often describes a preview, so rigkit takes every size from the decoder
-(:func:`rigkit.capture.rawio.frame_size`).
+(:func:`rigkit.imagefile.rawio.frame_size`).
 """
 
 from __future__ import annotations
