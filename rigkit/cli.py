@@ -55,9 +55,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     tune_for_images()  # freed image-sized arrays reused, no huge-page stalls: ~1.4 s of a triple
     try:
         with _quiet_libraries():
+            _check_outputs(parser, args)
             code: int = _runner(args.runner)(args)
     except RigkitError as exc:
-        print(f"rigkit {args.command}: error: {exc}", file=sys.stderr)
+        print(f"rigkit {args.command}: error: {_shown(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         return _interrupted(f"rigkit {args.command}", exc)
@@ -66,9 +67,51 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.close()
         return 0
     except OSError as exc:  # the machine's, not the input's: a full disk, a read-only folder
-        print(f"rigkit {args.command}: error: {environment_message(exc)}", file=sys.stderr)
+        print(f"rigkit {args.command}: error: {_shown(environment_message(exc))}",
+              file=sys.stderr)
         return 2
     return code
+
+
+def _check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Every output the command line names (an argument whose type has an
+    ``output_kind``: :class:`rigkit.commands.OutputPath`), in the subcommands chosen,
+    checked by the one rule for outputs (:mod:`rigkit.core.outputs`) before the command
+    starts; options not given (None) are left out."""
+    from rigkit.core.outputs import CHECKS
+
+    for action in _chosen_actions(parser, args):
+        kind = getattr(action.type, "output_kind", None)
+        value = getattr(args, action.dest, None)
+        if kind is None or value is None:
+            continue
+        name = action.option_strings[-1] if action.option_strings else \
+            (action.metavar if isinstance(action.metavar, str) else action.dest).upper()
+        for path in value if isinstance(value, list) else [value]:
+            CHECKS[kind](path, name)
+
+
+def _chosen_actions(parser: argparse.ArgumentParser, args: argparse.Namespace
+                    ) -> list[argparse.Action]:
+    """The actions of ``parser`` and of each subparser ``args`` chose, top down."""
+    actions: list[argparse.Action] = []
+    current: argparse.ArgumentParser | None = parser
+    while current is not None:
+        actions += current._actions
+        chosen = None
+        for action in current._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                chosen = action.choices.get(str(getattr(args, action.dest, "")))
+        current = chosen
+    return actions
+
+
+def _shown(message: str) -> str:
+    """An error message as one line that names, never obeys, what it quotes (a file
+    name's escapes or newlines: :func:`rigkit.core.tables.visible`)."""
+    from rigkit.core.tables import visible
+
+    return visible(message, lines=False)
 
 
 def _runner(path: str) -> Callable[[argparse.Namespace], int]:

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
+import re
+import secrets
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -41,11 +43,20 @@ from rigkit.capture.session import (
     save_session,
     utc_now,
 )
-from rigkit.core.files import file_sha256, fsync_folder, recover_folder, temp_file
-from rigkit.core.safefs import real_folder, require_file
+from rigkit.core.files import fd_sha256, file_sha256, recover_folder
+from rigkit.core.safefs import (
+    fd_path,
+    open_folder,
+    open_input,
+    open_regular,
+    remove_files,
+    require_file,
+    too_large,
+)
+from rigkit.core.tables import visible
 from rigkit.errors import InputError
 from rigkit.imagefile.exif import ExifInfo, read_exif
-from rigkit.imagefile.imagesize import check_before_copy
+from rigkit.imagefile.imagesize import MAX_FRAME_BYTES, check_before_copy
 from rigkit.imagefile.rawio import is_raw, load_linear_grey
 from rigkit.rig.profile import load_rig, rig_to_dict
 
@@ -122,7 +133,9 @@ class StagedFrame:
     (:func:`rigkit.imagefile.rawio.load_linear_grey`; RAW: linear, kept in ``derived/``),
     for every check of it (handed to the on-site checks, :func:`rigkit.capture.views.
     admit`, which may scale it in place); ``raw``, whether it is camera RAW;
-    ``replace_existing`` and ``burst``, how it joins the position's frames."""
+    ``replace_existing`` and ``burst``, how it joins the position's frames; ``copy``, the
+    copy as the staging folder's descriptor holds it (``path`` reaches it through that
+    descriptor), linked into ``raw/`` from there."""
 
     session: Session
     position: str
@@ -133,6 +146,7 @@ class StagedFrame:
     raw: bool
     replace_existing: bool = False
     burst: bool = False
+    copy: _Staged | None = None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -159,7 +173,8 @@ def staged_frame(session: Session, position: str, source: str | Path, *,
     source = Path(source)
     check_frame_file(session, position, source)
     with changing(session.path, "add-frame") as current, \
-            _staged(current.path, source) as (path, sha256):
+            _staged(current.path, source) as copy:
+        path, sha256 = copy.path, copy.sha256
         _check_joins(current, position, source, path, sha256, replace_existing, burst)
         rig = current.rig()  # every frame has its size, so all frames agree
         try:
@@ -168,7 +183,7 @@ def staged_frame(session: Session, position: str, source: str | Path, *,
         except InputError as exc:  # name the file the user gave, not the staged copy
             raise InputError(str(exc).replace(str(path), str(source))) from None
         yield StagedFrame(current, position, source, path, sha256, grey, is_raw(path),
-                          replace_existing, burst)
+                          replace_existing, burst, copy)
 
 
 def file_frame(staged: StagedFrame, origin: str | None = None) -> Session:
@@ -177,18 +192,20 @@ def file_frame(staged: StagedFrame, origin: str | None = None) -> Session:
     content is reused, different content gets the position as a prefix), its EXIF read,
     ``session.yaml`` saved and the change logged; returns the session as saved.
     ``origin`` is what session.yaml records as the frame's ``source``; by default the
-    file's absolute path (a file rigkit made itself says so instead, e.g. ``rendered by
-    rigkit synth, seed 7``, which does not depend on the machine)."""
+    file's absolute path as given, written out (:func:`rigkit.core.tables.visible`; a
+    file rigkit made itself says so instead, e.g. ``rendered by rigkit synth, seed 7``,
+    which does not depend on the machine). A name that holds characters no name should
+    (control, invisible, not UTF-8) is stored under :func:`stored_name`."""
     session, position, source = staged.session, staged.position, staged.source
-    stored = _store(session.path / RAW_DIR, staged.path, _text_name(source.name), position,
-                    staged.sha256)
+    assert staged.copy is not None, "a staged frame is filed inside staged_frame's block"
+    stored = _store(session.path / RAW_DIR, staged.copy, stored_name(source.name), position)
     frame = Frame(
         position=position,
-        file=f"{RAW_DIR}/{stored.name}",
+        file=f"{RAW_DIR}/{stored}",
         sha256=staged.sha256,
         size_px=staged.size,
         added_utc=utc_now(),
-        source=origin or _text_name(str(source.resolve())),
+        source=origin or visible(str(source.resolve()), lines=False),
         exif=exif_fields(read_exif(staged.path)),
     )
     before = () if staged.replace_existing else session.bursts.get(position, ())
@@ -211,10 +228,14 @@ def check_frame_file(session: Session, position: str, source: Path) -> None:
                       raw=is_raw(source))
 
 
-def _text_name(name: str) -> str:
-    """``name`` as text that every file and log takes: bytes of a file name that are not
-    UTF-8 (which Python keeps as lone surrogates) become ``_``."""
-    return os.fsencode(name).decode("utf-8", "replace").replace("\ufffd", "_")
+def stored_name(name: str) -> str:
+    """The name a frame file called ``name`` gets in ``raw/``: every character that is
+    no plain printable one (control characters, a newline, an escape, Unicode's
+    invisible and direction-changing ones) and every byte of the name that is not UTF-8
+    made ``_``, so nothing in ``session.yaml``, ``history.log`` or on a screen can be
+    turned against the reader (the original is recorded as the frame's ``source``)."""
+    text = os.fsencode(name).decode("utf-8", "replace").replace("\ufffd", "_")
+    return "".join(c if c.isprintable() else "_" for c in text)
 
 
 def _check_joins(session: Session, position: str, source: Path, staged: Path,
@@ -264,7 +285,11 @@ def repair_session(path: Path) -> None:
     except InputError:  # derived and damaged: the next run replaces it; it blocks nothing
         return
     log = path / LOG_NAME
-    logged = {row.run_id for row in read_rows(log)} if log.is_file() else set()
+    damaged: list[str] = []  # said by what reads the log; the repair needs the run ids
+    try:
+        logged = {row.run_id for row in read_rows(log, damaged)} if log.is_file() else set()
+    except InputError:  # no log that can be read (too large, no CSV): its readers say so
+        return
     missing = [row for row in rows if row.run_id not in logged]
     if missing:
         append_rows(log, missing)
@@ -278,64 +303,109 @@ def session_frames(session: Session) -> dict[str, tuple[FrameFile, ...]]:
             for pos, burst in session.bursts.items()}
 
 
+_INGEST_LEFTOVER = re.compile(r"\.ingest\..*\.tmp")
+"""The partial copies an older rigkit made inside ``raw/`` (before it staged outside)."""
+
+
 def clean_staging(session_path: Path) -> None:
     """Remove what an interrupted ``add-frame`` left: staged copies, and the partial
     copies (``raw/.ingest.*.tmp``) that rigkit made inside ``raw/`` before it staged
-    outside it. Called under the session's lock, when no copy can be under way."""
-    folders = [session_path / STAGING_DIR, session_path / RAW_DIR]
-    for folder, pattern in zip(folders, ("*", ".ingest.*.tmp"), strict=True):
-        if not os.path.lexists(folder):
+    outside it. Called under the session's lock, when no copy can be under way. Each
+    folder is opened once, without following a link, and emptied relative to its
+    descriptor (:func:`rigkit.core.safefs.remove_files`): a ``.staging`` swapped for a
+    link to ``raw/`` or elsewhere during the cleanup has nothing removed from it."""
+    leftovers: dict[str, Callable[[str], bool]] = {
+        STAGING_DIR: lambda _: True, RAW_DIR: lambda n: _INGEST_LEFTOVER.fullmatch(n) is not None}
+    for name, match in leftovers.items():
+        try:
+            folder = open_folder(session_path / name)
+        except FileNotFoundError:
             continue
-        for leftover in real_folder(folder).glob(pattern):  # never a link to raw/ or away
-            if leftover.is_file() and not leftover.is_symlink():
-                leftover.unlink(missing_ok=True)
+        try:
+            remove_files(folder, match)
+        finally:
+            os.close(folder)
+
+
+@dataclass(frozen=True)
+class _Staged:
+    """A frame's copy in the session's staging folder: ``folder`` the folder's
+    descriptor, ``name`` the copy's name in it, ``path`` a path that reaches the copy
+    through the descriptor (:func:`rigkit.core.safefs.fd_path`), ``sha256`` of exactly
+    the bytes copied."""
+
+    folder: int
+    name: str
+    path: Path
+    sha256: str
 
 
 @contextmanager
-def _staged(session_path: Path, source: Path) -> Iterator[tuple[Path, str]]:
-    """A byte-for-byte copy of ``source`` in the session's staging folder (outside
-    ``raw/``), fsynced, and the SHA-256 of exactly the bytes copied; removed afterwards,
-    whatever happens (a frame that is kept has been linked into ``raw/`` by then)."""
-    folder = session_path / STAGING_DIR
+def _staged(session_path: Path, source: Path) -> Iterator[_Staged]:
+    """A byte-for-byte copy of ``source`` (never a FIFO or a device) in the session's
+    staging folder (outside ``raw/``), fsynced; removed afterwards, whatever happens (a
+    frame that is kept has been linked into ``raw/`` by then). The staging folder is
+    opened once and the copy made, read and removed relative to it."""
+    staging = session_path / STAGING_DIR
     try:
-        fd, tmp = temp_file(real_folder(folder, create=True), "frame")
+        folder = open_folder(staging, create=True)
     except OSError as exc:
         raise InputError(f"{session_path}: cannot write to the session ({exc.strerror})"
                          ) from None
-    staged = tmp.with_name(f"{tmp.stem}{source.suffix}")  # the decoder goes by the suffix
-    digest = hashlib.sha256()
+    name = f".frame.{secrets.token_hex(8)}{source.suffix}"  # the decoder goes by the suffix
     try:
-        os.rename(tmp, staged)
-        with os.fdopen(fd, "wb") as out, source.open("rb") as original:
+        out = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                      0o666, dir_fd=folder)
+        digest, copied = hashlib.sha256(), 0
+        with os.fdopen(out, "wb") as copy, os.fdopen(open_input(source), "rb") as original:
             for block in iter(lambda: original.read(1 << 20), b""):
+                copied += len(block)
+                if copied > MAX_FRAME_BYTES:  # it grew past any frame while copied
+                    raise too_large(source, copied, MAX_FRAME_BYTES, "a frame file")
                 digest.update(block)
-                out.write(block)
-            out.flush()
-            os.fsync(out.fileno())
-        yield staged, digest.hexdigest()
+                copy.write(block)
+            copy.flush()
+            os.fsync(copy.fileno())
+        yield _Staged(folder, name, fd_path(folder, name, staging), digest.hexdigest())
     finally:
-        tmp.unlink(missing_ok=True)
-        staged.unlink(missing_ok=True)
+        with suppress(FileNotFoundError):
+            os.unlink(name, dir_fd=folder)
+        os.close(folder)
 
 
-def _store(raw_dir: Path, staged: Path, name: str, position: str, wanted: str) -> Path:
-    """Link the accepted ``staged`` file (SHA-256 ``wanted``) into ``raw_dir`` without
-    overwriting anything: under its original ``name``, or prefixed with the position
-    when a different file already has that name. Returns the stored path."""
-    real_folder(raw_dir, create=True)  # a link to a folder elsewhere is refused
-    for candidate in (name, f"{position}-{name}"):
-        target = raw_dir / candidate
-        if target.exists():
-            if target.is_file() and not target.is_symlink() and file_sha256(target) == wanted:
-                return target
-            continue
-        os.link(staged, target)  # fails rather than overwrite a file that appeared meanwhile
-        fsync_folder(raw_dir)
-        return target
+def _store(raw_dir: Path, staged: _Staged, name: str, position: str) -> str:
+    """Link the accepted ``staged`` copy into ``raw_dir`` without overwriting anything:
+    under its original ``name``, or prefixed with the position when a different file
+    already has that name. Returns the name stored. ``raw/`` is opened once (a link to
+    a folder elsewhere is refused) and linked into relative to its descriptor, from the
+    staging folder's, so a folder swapped for a link meanwhile redirects nothing."""
+    folder = open_folder(raw_dir, create=True)
+    try:
+        for candidate in (name, f"{position}-{name}"):
+            try:  # fails rather than overwrite a file that appeared meanwhile
+                os.link(staged.name, candidate, src_dir_fd=staged.folder, dst_dir_fd=folder,
+                        follow_symlinks=False)
+            except FileExistsError:
+                if _same_file(folder, candidate, staged.sha256):
+                    return candidate
+                continue
+            os.fsync(folder)
+            return candidate
+    finally:
+        os.close(folder)
     raise InputError(
         f"{raw_dir}: already holds different files named {name} and {position}-{name}; "
         "rename the file to add"
     )
+
+
+def _same_file(folder: int, name: str, sha256: str) -> bool:
+    """Whether ``name`` in the folder open at ``folder`` is a regular file (not a link,
+    not a FIFO) holding the bytes of SHA-256 ``sha256``."""
+    try:
+        return fd_sha256(open_regular(Path(name), os.O_RDONLY, dir_fd=folder)) == sha256
+    except (OSError, InputError):
+        return False
 
 
 def exif_fields(info: ExifInfo) -> dict[str, Any]:

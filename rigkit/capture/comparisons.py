@@ -19,9 +19,12 @@ from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
+from rigkit.capture.session import MAX_SIDE_PX, is_plain_name
 from rigkit.core.files import append_whole
 from rigkit.core.safefs import read_regular
 from rigkit.errors import InputError
+from rigkit.rangefinder.framing import MIN_RANGE_M
+from rigkit.rig.profile import MAX_RANGE_M
 
 LOG_NAME = "comparisons.csv"
 
@@ -107,14 +110,23 @@ def append_rows(path: Path, rows: Sequence[Comparison]) -> None:
     append_whole(path, csv_text(rows, header=not path.exists() or path.stat().st_size == 0))
 
 
-def read_rows(path: Path, torn: list[str] | None = None) -> list[Comparison]:
-    """Every row of a comparisons log; InputError naming the file when it is no log.
+LOG_LIMIT = 64 << 20
+"""The largest comparisons log read, bytes: some 250,000 rows (a thousand targets
+processed 250 times); a larger file is refused unread."""
 
-    A row that does not parse (what a crash or a full disk mid-append leaves, in rigkit
-    before append_whole) is skipped, and said in ``torn`` ("line 7: ...") when a list is
-    given, so one damaged row does not make the whole history unreadable."""
+
+def read_rows(path: Path, torn: list[str] | None = None) -> list[Comparison]:
+    """Every row of a comparisons log; InputError naming the file when it is no log
+    or larger than :data:`LOG_LIMIT`.
+
+    A row that does not parse or holds what no run writes (what a crash or a full disk
+    mid-append leaves, in rigkit before append_whole; a value edited in: a NaN, a range
+    of 1e200 m) is skipped and said in ``torn`` ("line 7: ...") when a list is given,
+    so one damaged row does not make the whole history unreadable (a report, ``session
+    show``). Without ``torn`` such a row is refused, InputError naming the file and
+    line: what fits a rig must not rest on a row it cannot trust."""
     try:
-        text = read_regular(path).decode("utf-8")
+        text = read_regular(path, LOG_LIMIT, "a comparisons log").decode("utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: no comparisons log (run `rigkit process` first)") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -134,9 +146,12 @@ def read_rows(path: Path, torn: list[str] | None = None) -> list[Comparison]:
     for number, record in enumerate(reader, start=2):
         try:
             rows.append(_parse(record))
-        except (TypeError, ValueError) as exc:
-            if torn is not None:
-                torn.append(f"{path}: line {number} is damaged and was skipped ({exc})")
+        except (TypeError, ValueError, OverflowError) as exc:
+            if torn is None:
+                raise InputError(f"{path}: line {number} is no comparison rigkit wrote "
+                                 f"({exc}); remove the line or process the session "
+                                 "again") from None
+            torn.append(f"{path}: line {number} is damaged and was skipped ({exc})")
     return rows
 
 
@@ -154,6 +169,8 @@ def _parse(record: dict[str, str]) -> Comparison:
 
 
 _STATUSES = (STATUS_OK, STATUS_NO_ESTIMATE, STATUS_NO_READING)
+MAX_READINGS = 1_000_000
+"""The most laser readings one target's row may count."""
 
 
 def _check_row(row: Comparison) -> None:
@@ -164,20 +181,29 @@ def _check_row(row: Comparison) -> None:
     for ranges that do not give it."""
     if row.status not in _STATUSES:
         raise ValueError(f"status {row.status!r} is none of {', '.join(_STATUSES)}")
-    if not (math.isfinite(row.u) and math.isfinite(row.v)) or row.window_px < 1:
+    if not (is_plain_name(row.session) and is_plain_name(row.target)):
+        raise ValueError("the session or target is no name rigkit gives (a plain name)")
+    if not (row.run_id.isprintable() and row.time_utc.isprintable()):
+        raise ValueError("the run id or time holds characters that are not printable")
+    if not (abs(row.u) <= MAX_SIDE_PX and abs(row.v) <= MAX_SIDE_PX
+            and 1 <= row.window_px <= MAX_SIDE_PX):
         raise ValueError("the target's pixel or window is not a position")
     if not 0.0 <= row.valid_fraction <= 1.0:
         raise ValueError(f"valid_fraction {row.valid_fraction:g} is not a fraction")
     laser, estimate = row.laser_range_m, row.estimate_range_m
-    if (row.laser_readings > 0) != (row.status != STATUS_NO_READING) or row.laser_readings < 0:
+    if (row.laser_readings > 0) != (row.status != STATUS_NO_READING) or not \
+            0 <= row.laser_readings <= MAX_READINGS:
         raise ValueError(f"{row.laser_readings} laser readings for status {row.status}")
-    if row.status != STATUS_NO_READING and not (math.isfinite(laser) and laser > 0):
-        raise ValueError(f"laser_range_m {laser:g} is not a range")
+    if row.status != STATUS_NO_READING:
+        _check_range("laser_range_m", laser)
+        if not 0 <= row.laser_spread_m <= MAX_RANGE_M:
+            raise ValueError(f"laser_spread_m {row.laser_spread_m:g} is not a spread of ranges")
     if row.status != STATUS_OK:
         return
-    if not (math.isfinite(estimate) and estimate > 0 and row.estimate_sigma_m >= 0):
-        raise ValueError(f"estimate_range_m {estimate:g} (sigma {row.estimate_sigma_m:g}) "
-                         "is not a range")
+    _check_range("estimate_range_m", estimate)
+    if not 0 <= row.estimate_sigma_m <= MAX_RANGE_M:
+        raise ValueError(f"estimate_sigma_m {row.estimate_sigma_m:g} is not an uncertainty "
+                         "of a range")
     digits = 10.0 ** -(SIGNIFICANT_DIGITS - 1)  # what the log's rounding may move
     if (not math.isclose(row.error_m, estimate - laser, rel_tol=0.0,
                          abs_tol=digits * (estimate + laser))
@@ -185,6 +211,15 @@ def _check_row(row: Comparison) -> None:
                                 rel_tol=10 * digits, abs_tol=1e-12)):
         raise ValueError(f"error_m {row.error_m:g} and error_pct {row.error_pct:g} do not "
                          f"follow from the ranges ({estimate:g} m against {laser:g} m)")
+
+
+def _check_range(name: str, value: float) -> None:
+    """ValueError unless ``value`` is a range rigkit measures or compares: from the
+    rangefinder's shortest to the longest any rig profile allows (NaN, infinity,
+    1e200 m are not)."""
+    if not MIN_RANGE_M <= value <= MAX_RANGE_M:
+        raise ValueError(f"{name} {value:g} is no range ({MIN_RANGE_M:g} to "
+                         f"{MAX_RANGE_M:g} m)")
 
 
 def latest_run(rows: Iterable[Comparison]) -> list[Comparison]:

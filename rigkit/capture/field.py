@@ -44,7 +44,7 @@ import numpy as np
 
 from rigkit.capture.actions import file_frame, staged_frame
 from rigkit.capture.checks import UNCHECKED, check_exif
-from rigkit.capture.model import POSITIONS, Frame, Session
+from rigkit.capture.model import FIELD_STEPS, POSITIONS, Frame, Session
 from rigkit.capture.views import (
     CheckFrame,
     ViewMap,
@@ -57,6 +57,7 @@ from rigkit.capture.views import (
     reference,
     view_map,
 )
+from rigkit.core.tables import visible
 from rigkit.core.threads import ViewPool
 from rigkit.errors import RigkitError
 from rigkit.pipeline.checks import (
@@ -183,14 +184,27 @@ def resume_step(session: Session) -> str:
     """The step ``rigkit field`` opens ``session`` at: the one it was on when it stopped
     (``session.field_step``), unless that needs frames the session lacks (then the first
     position without one, :func:`next_step`); where no step was recorded, the rig while no
-    frame is taken, else :func:`next_step`."""
+    frame is taken, else :func:`next_step`; where the step recorded is none this rigkit
+    knows (empty, or a newer rigkit's), :func:`next_step` (:func:`resume_note` says so)."""
     derived = next_step(session)
     step = session.field_step
     if step is None:
         return "rig" if derived == "left" else derived
-    if step in ("targets", "process") and derived in POSITIONS:
+    if step not in FIELD_STEPS or (step in ("targets", "process") and derived in POSITIONS):
         return derived
     return step
+
+
+def resume_note(session: Session) -> str:
+    """Why ``rigkit field`` does not open the step ``session.yaml`` records, where that
+    is none it knows; "" otherwise."""
+    step = session.field_step
+    if step is None or step in FIELD_STEPS:
+        return ""
+    what = "is empty" if not step.strip() else \
+        f"'{visible(step, lines=False)}' is no step this rigkit knows"
+    return (f"{session.yaml_path}: field_step {what} ({', '.join(FIELD_STEPS)}); starting at "
+            f"{resume_step(session)}, where the capture stands")
 
 
 def next_step(session: Session) -> str:

@@ -129,7 +129,8 @@ class Session:
     tripod: TripodPosition | None = None
     """Where the tripod stood (``rigkit session set-position``), None if not recorded."""
     field_step: str | None = None
-    """The step of :data:`FIELD_STEPS` ``rigkit field`` was last on, None if never."""
+    """The step of :data:`FIELD_STEPS` ``rigkit field`` was last on, None if never; as
+    written in ``session.yaml``, so possibly a step this rigkit does not know or ``""``."""
 
     @property
     def frames(self) -> Mapping[str, Frame]:

@@ -79,13 +79,16 @@ def next_target_name(session: Session) -> str:
     or ever held (``history.log`` names each target added): a deleted target's name is
     never given again, so the comparisons logged for it stay its own."""
     try:
-        history = read_regular(session.path / HISTORY_FILE).decode("utf-8", "replace")
-    except (OSError, RigkitError):  # no history yet, or none readable: the targets held
+        history = read_regular(session.path / HISTORY_FILE, HISTORY_LIMIT,
+                               "a session's history").decode("utf-8", "replace")
+    except (OSError, RigkitError):  # none yet, unreadable or too large: the targets held
         history = ""
     names = [t.name for t in session.targets] + _ADDED.findall(history)
     used = [int(name[1:]) for name in names if re.fullmatch(r"T\d{1,9}", name)]
     return f"T{max(used, default=0) + 1}"
 
 
+HISTORY_LIMIT = 64 << 20
+"""The most of ``history.log`` read for the names of targets once added, bytes."""
 _ADDED = re.compile(r"^\S+\s+add-target\s+(\S+) pixel", re.MULTILINE)
 """A target's name in ``history.log``'s line for it (:func:`rigkit.capture.actions.add_target`)."""

@@ -465,6 +465,7 @@ def stale_results(session: Session, with_targets: bool = True) -> str | None:
     if with_targets and os.path.lexists(done):
         try:
             read_rows(done)
-        except InputError:
-            return f"results/{LOG_NAME} is unreadable; process again"
+        except InputError as exc:  # why, without the path: said by the caller
+            return (f"results/{LOG_NAME} is unreadable ({str(exc).split(': ', 1)[-1]}); "
+                    "process again")
     return None

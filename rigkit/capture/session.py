@@ -31,7 +31,6 @@ from typing import Any
 from rigkit.capture.model import (
     DEFAULT_WINDOW_PX,
     FIELD_STEP_KEY,
-    FIELD_STEPS,
     HISTORY_FILE,
     MAX_SIDE_PX,
     POSITIONS,
@@ -154,9 +153,11 @@ def _session_from_data(data: Any, path: Path) -> Session:
 
 
 def _field_step(value: Any, key: KeyPath) -> str:
-    if value not in FIELD_STEPS:
-        raise key.error(f"must be one of {', '.join(FIELD_STEPS)}", value)
-    return str(value)
+    """The field TUI's bookmark as written, kept whatever it is (a step a newer rigkit
+    added stays for it): only ``rigkit field`` reads it, and one it does not know (or an
+    empty one, ``""``) makes it start where the capture stands and say why
+    (:func:`rigkit.capture.field.resume_step`), so the session stays usable."""
+    return value if isinstance(value, str) else ""
 
 
 def _check_ranges(targets: tuple[Target, ...], longest_m: float, key: KeyPath) -> None:
@@ -337,8 +338,13 @@ def _plain_name(value: Any, key: KeyPath) -> str:
     return name
 
 
+def is_plain_name(name: str) -> bool:
+    """Whether ``name`` is a plain name (:func:`check_name`'s rule)."""
+    return _NAME.match(name) is not None
+
+
 def check_name(name: str, where: str) -> None:
-    if not _NAME.match(name):
+    if not is_plain_name(name):
         raise InputError(
             f"{where}: {name!r} is not a usable name (letters, digits, '.', '_', '-'; "
             "starting with a letter or digit)"

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -57,3 +58,22 @@ def count(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
     return value
+
+
+class OutputPath:
+    """An argparse type for a path the command writes: a file (``--out D.npy``), a
+    folder it writes into or creates, or a log it appends to (``output_kind``).
+    ``rigkit.cli`` checks every option of such a type by the one rule for outputs
+    (:mod:`rigkit.core.outputs`) before the command runs."""
+
+    def __init__(self, output_kind: str) -> None:
+        self.output_kind = output_kind
+        self.__name__ = f"output_{output_kind}"  # argparse names the type in errors
+
+    def __call__(self, text: str) -> Path:
+        return Path(text)
+
+
+output_file = OutputPath("file")
+output_folder = OutputPath("folder")
+output_log = OutputPath("log")

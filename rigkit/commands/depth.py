@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import finite
+from rigkit.commands import finite, output_file
 
 EXAMPLE = """examples:
   rigkit depth left.NRW right.NRW back.NRW --rig rigs/p1000-tripod.yaml --out out/depth.npy
@@ -68,7 +68,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--force", action="store_true",
                    help="compute depth even where the frames' EXIF focal length contradicts "
                    "the rig profile")
-    p.add_argument("--out", type=Path, required=True, help="depth map to write (.npy)")
+    p.add_argument("--out", type=output_file, required=True, help="depth map to write (.npy)")
     p.add_argument("--preview", action="store_true", help="also write colour-mapped PNGs")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(runner="rigkit.commands.depth_run:run")

@@ -15,8 +15,10 @@ from rigkit.capture.frames import frame_files
 from rigkit.capture.model import POSITIONS
 from rigkit.capture.results import RunFiles
 from rigkit.commands import parse_distortion
-from rigkit.core.files import Content, check_not_inputs, check_writable_folder, write_together
+from rigkit.core.files import Content, check_not_inputs, check_writable_folder
+from rigkit.core.outputs import check_outputs, write_outputs
 from rigkit.core.progress import Progress
+from rigkit.core.tables import visible
 from rigkit.errors import InputError
 from rigkit.imagefile.rawio import declared_size
 from rigkit.reporting.previews import colorize, depth_range
@@ -109,13 +111,12 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("; ".join(missing))
     if args.out.suffix != ".npy":
         raise InputError(f"--out {args.out}: expected a .npy file name")
-    if args.out.is_dir():
-        raise InputError(f"--out {args.out}: a folder; give a file name such as depth.npy")
     check_writable_folder(args.out.parent, f"--out {args.out}")
+    names = [path.name for path in _output_paths(args.out, args.preview)]
+    check_outputs(args.out.parent, names, "--out")  # the files written beside it too
     rig = rig_profile(args)
     bursts = frame_files({pos: getattr(args, pos) for pos in POSITIONS})
     read = [frame.path for frames in bursts.values() for frame in frames]
-    names = [path.name for path in _output_paths(args.out, args.preview)]
     check_not_inputs([args.out.parent / name for name in names],
                      read + ([args.rig] if args.rig is not None else []), f"--out {args.out}")
     size_from = None if args.rig is not None else f"the left frame {args.left[0]} is"
@@ -123,10 +124,10 @@ def run(args: argparse.Namespace) -> int:
     with Progress("depth", [task], quiet=args.quiet) as progress:
         run = run_depth(bursts, rig, force=args.force, size_from=size_from,
                         progress=lambda stage, f: progress.update(task, f, stage))
-    write_together(args.out.parent, _outputs(run, args.out, args.preview))
+    write_outputs(args.out.parent, _outputs(run, args.out, args.preview), "--out")
     print(_summary(run, args.out))
     for warning in run.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+        print(f"warning: {visible(warning, lines=False)}", file=sys.stderr)
     return 0
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rigkit.commands import output_file
+
 EXAMPLE = """example:
   rigkit eval out/scene-1 out/scene-2 --depth-dir out/depth --csv out/eval.csv
   (the estimate for out/scene-1 is out/depth/scene-1.npy, out/depth/scene-1-depth.npy
@@ -28,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scenes", nargs="+", type=Path, help="scene folders written by rigkit synth")
     p.add_argument("--depth-dir", type=Path,
                    help="folder of depth estimates (default: each session's results/)")
-    p.add_argument("--csv", type=Path, help="also write the table as CSV here")
+    p.add_argument("--csv", type=output_file, help="also write the table as CSV here")
     p.add_argument("--goal", action="store_true",
                    help="end with one line per scene saying whether it meets the goal "
                    "(>= 95 %% of pixels under 1 %%, |bias| <= 0.3 %%, every laser target "

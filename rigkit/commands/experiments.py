@@ -8,9 +8,8 @@ Middlebury's Motorcycle pair.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from rigkit.commands import finite
+from rigkit.commands import finite, output_folder
 from rigkit.experiments.defaults import METHODS
 
 _EPILOG = """\
@@ -50,7 +49,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     t.add_argument("--height", type=int, default=3456, help="image height, px (default 3456)")
     t.add_argument("--methods", default=",".join(METHODS),
                    help="comma-separated subset of %(default)s")
-    t.add_argument("--out", type=Path, required=True, help="output folder")
+    t.add_argument("--out", type=output_folder, required=True, help="output folder")
     t.add_argument("--quiet", action="store_true", help="no progress display")
     t.set_defaults(runner="rigkit.commands.experiments_run:run_table1")
     b = sub.add_parser(
@@ -64,7 +63,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     b.add_argument("--noise", type=finite, default=None,
                    help="pixel noise sigma per axis (default 2^-1/4 px: the paper's "
                    "covariance diag(1/sqrt 2))")
-    b.add_argument("--out", type=Path, required=True, help="output folder")
+    b.add_argument("--out", type=output_folder, required=True, help="output folder")
     b.set_defaults(runner="rigkit.commands.experiments_run:run_bas_relief")
     s = sub.add_parser(
         "stereo",

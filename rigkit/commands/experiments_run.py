@@ -58,7 +58,7 @@ def run_table1(args: argparse.Namespace) -> int:
 def run_bas_relief(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from rigkit.core.files import write_bytes, write_text
+    from rigkit.core.outputs import check_outputs, write_outputs
     from rigkit.experiments.basrelief import BasReliefSetup, figure_png, run_many, runs_csv
 
     if args.runs < 1:
@@ -66,11 +66,13 @@ def run_bas_relief(args: argparse.Namespace) -> int:
     if args.noise is not None and args.noise < 0:
         raise InputError(f"--noise must not be negative, got {args.noise}")
     setup = BasReliefSetup() if args.noise is None else BasReliefSetup(noise_sigma_px=args.noise)
+    names = ("basrelief.csv", "basrelief.json", "basrelief.png")
+    check_outputs(args.out, names, "--out")
     results, summary = run_many(setup, args.runs, np.random.default_rng(args.seed))
     args.out.mkdir(parents=True, exist_ok=True)
-    write_text(args.out / "basrelief.csv", runs_csv(results))
-    write_text(args.out / "basrelief.json", json.dumps(asdict(summary), indent=2) + "\n")
-    write_bytes(args.out / "basrelief.png", figure_png(results))
+    contents = (runs_csv(results), json.dumps(asdict(summary), indent=2) + "\n",
+                figure_png(results))
+    write_outputs(args.out, dict(zip(names, contents, strict=True)), "--out")
     x, y, z = summary.rot_median_deg
     print(f"{summary.runs} runs, noise sigma {setup.noise_sigma_px:.3f} px per axis")
     print(f"|rotation error| median x {x:.4f}, y {y:.4f}, z {z:.4f} deg; "

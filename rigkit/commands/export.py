@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count, finite
+from rigkit.commands import count, finite, output_folder
 from rigkit.export.defaults import VERTICAL_ELLIPSOIDAL, VERTICAL_RECORDED
 
 EXAMPLE = """examples:
@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("source", type=Path, metavar="SESSION|DEPTH.npy",
                    help="a processed session folder, or a depth map written by rigkit depth")
-    p.add_argument("--out", type=Path, required=True, help="folder to write into")
+    p.add_argument("--out", type=output_folder, required=True, help="folder to write into")
     p.add_argument("--format", default="ply,las",
                    help="comma-separated: ply, las, laz, tif, dsm (default: ply,las)")
     p.add_argument("--step", type=count, default=1,

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rigkit.commands import output_folder
+
 EXAMPLE = """examples:
   rigkit field --demo                       the whole flow on a synthetic scene, no hardware
   rigkit field                              the sessions in ./capture: resume one or start one
@@ -26,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLE,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("session", type=Path, nargs="?", metavar="SESSION",
+    p.add_argument("session", type=output_folder, nargs="?", metavar="SESSION",
                    help="session folder to resume, or to create (with --rig)")
     p.add_argument("--rig", type=Path, metavar="PROFILE", help="rig profile for a new session")
     p.add_argument("--watch", type=Path, metavar="DIR",
@@ -35,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "or sim://trupulse (default: the rig profile's, else ranges are typed in)")
     p.add_argument("--protocol", default="trupulse", help="rangefinder protocol (trupulse, "
                    "vectronix)")
-    p.add_argument("--capture", type=Path, default=Path("capture"), metavar="DIR",
+    p.add_argument("--capture", type=output_folder, default=Path("capture"), metavar="DIR",
                    help="folder of sessions listed at the start (default ./capture)")
     p.add_argument("--demo", action="store_true",
                    help="synthetic scene, simulated camera and rangefinder, in a temporary folder")

@@ -12,6 +12,7 @@ from rigkit.batch import auto_jobs, new_run_id, run_batch
 from rigkit.batch.pool import BatchReport
 from rigkit.batch.session import Outcome
 from rigkit.core.progress import Progress
+from rigkit.core.tables import visible
 from rigkit.errors import InputError
 
 
@@ -36,14 +37,14 @@ def run(args: argparse.Namespace) -> int:
         def finished(outcome: Outcome) -> None:
             progress.done(names[outcome.path])
             for line in _outcome_lines(outcome):
-                progress.print(line)
+                progress.print(visible(line, lines=False))
 
         outcomes = process(run_id, update, finished)
     failed = [o for o in outcomes if not o.ok]
     print(f"run {run_id}: {len(outcomes) - len(failed)} processed, {len(failed)} failed "
           f"({progress.elapsed():.1f} s)")
     for outcome in failed:
-        print(f"  FAILED {_reason(outcome)}")
+        print(f"  FAILED {visible(_reason(outcome), lines=False)}")
     return 1 if failed else 0
 
 

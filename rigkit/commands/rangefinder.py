@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from rigkit.commands import count
+from rigkit.commands import count, output_log
 from rigkit.rangefinder.defaults import DEFAULT_BAUDS, DEFAULT_TIMEOUT_S, SIM_OPTIONS
 
 READ_EXAMPLE = """\
@@ -87,7 +87,8 @@ def _add_port_options(parser: argparse.ArgumentParser, *, timeout_help: str) -> 
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object per reading")
     parser.add_argument(
-        "--raw-log", metavar="FILE", help="append all raw serial traffic to FILE (for audit)"
+        "--raw-log", type=output_log, metavar="FILE",
+        help="append all raw serial traffic to FILE (for audit)"
     )
 
 
@@ -124,7 +125,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     _add_port_options(
         log, timeout_help="stop after S seconds without a reading (default: wait forever)"
     )
-    log.add_argument("--output", required=True, metavar="FILE", help="JSON-lines file to append to")
+    log.add_argument("--output", type=output_log, required=True, metavar="FILE",
+                     help="JSON-lines file to append to")
     log.add_argument("--count", type=count, metavar="N", help="stop after N readings")
     log.add_argument(
         "--interval",

@@ -12,7 +12,8 @@ import time
 from pathlib import Path
 from typing import TextIO
 
-from rigkit.core.safefs import require_file
+from rigkit.core.outputs import OutputLog
+from rigkit.core.safefs import open_regular
 from rigkit.errors import InputError
 from rigkit.rangefinder import (
     DEFAULT_TIMEOUT_S,
@@ -113,14 +114,14 @@ def _next_reading(rangefinder: Rangefinder, args: argparse.Namespace) -> Reading
 
 def _check_output(args: argparse.Namespace) -> None:
     """InputError, before the port is opened, where ``--output`` is no JSON-lines log
-    (an image, a document: appended to, it would be damaged) or is ``--raw-log`` too."""
+    (a raw log of an earlier run: appended to, it would be mixed) or is ``--raw-log``
+    too. Whether rigkit may append to it at all is :mod:`rigkit.core.outputs`' rule,
+    checked before the command starts."""
     path = args.output
     if args.raw_log is not None and os.path.realpath(args.raw_log) == os.path.realpath(path):
         raise InputError(f"--output {path}: also --raw-log; give the two logs two files")
-    if os.path.exists(path):
-        require_file(Path(path))  # a FIFO would block the command, a device swallow it
-    try:
-        with open(path, "rb") as handle:
+    try:  # never blocks: a FIFO or a device is refused unopened
+        with os.fdopen(open_regular(path, os.O_RDONLY), "rb") as handle:
             first = handle.readline(1 << 16)
     except FileNotFoundError:
         return
@@ -136,22 +137,13 @@ def _check_output(args: argparse.Namespace) -> None:
                          "wrote")
 
 
-def _append_to(path: str) -> TextIO:
-    """``path`` opened to append lines; a last line cut short (a log whose writer was
-    stopped mid-line) is ended first, so the next reading is a line of its own."""
-    try:
-        with open(path, "rb") as handle:
-            end = handle.seek(0, os.SEEK_END)
-            torn = end > 0 and handle.seek(end - 1) >= 0 and handle.read(1) != b"\n"
-    except FileNotFoundError:
-        torn = False
-    except OSError as exc:
-        raise InputError(f"cannot append to {path}: {exc.strerror}") from None
-    try:
-        output = open(path, "a", encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot append to {path}: {exc.strerror}") from None
-    if torn:
+def _append_to(path: Path) -> TextIO:
+    """``path`` opened to append lines (:class:`rigkit.core.outputs.OutputLog`); a last
+    line cut short (a log whose writer was stopped mid-line) is ended first, so the next
+    reading is a line of its own."""
+    output = OutputLog(path, "--output")
+    end = os.fstat(output.fileno()).st_size
+    if end > 0 and os.pread(output.fileno(), 1, end - 1) != b"\n":
         output.write("\n")
     return output
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rigkit.commands import output_folder
+
 EXAMPLE = """example:
   rigkit report capture/field-1 capture/field-2 --out out/report
   rigkit report capture/field-1 --out out/field-1-history --all-runs
@@ -36,7 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="session folder holding comparisons.csv (one or more)",
     )
     p.add_argument(
-        "--out", type=Path, required=True, metavar="DIR", help="folder to write the report into"
+        "--out", type=output_folder, required=True, metavar="DIR",
+        help="folder to write the report into"
     )
     p.add_argument(
         "--all-runs",

@@ -8,7 +8,8 @@ from pathlib import Path
 
 from rigkit.capture.comparisons import csv_text
 from rigkit.capture.session import check_outside
-from rigkit.core.files import write_together
+from rigkit.core.outputs import check_output_folder, check_outputs, write_outputs
+from rigkit.core.tables import visible
 from rigkit.errors import InputError
 from rigkit.reporting.plots import FORMATS, plot_error_vs_range, plot_estimate_vs_laser, render
 from rigkit.reporting.scale import calibration_rows, session_scale_note
@@ -30,11 +31,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.sessions:
         raise InputError("no session folders given (e.g. rigkit report capture/field-1 --out DIR)")
     formats = _formats(args.format)
-    _check_out(args.out, args.sessions)
+    _check_out(args.out, args.sessions, formats)
     torn: list[str] = []
     rows = collect(args.sessions, all_runs=args.all_runs, torn=torn)
     for problem in torn:
-        print(f"warning: {problem}", file=sys.stderr)
+        print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
     if not rows:
         raise InputError(f"no comparisons in {', '.join(map(str, args.sessions))} (an empty "
                          "log, or every row damaged): nothing to report; rigkit process a "
@@ -55,22 +56,29 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_out(out: Path, sessions: list[Path]) -> None:
-    """--out must be a folder (or not exist yet) and never inside a session: its
-    comparisons.csv would replace the session's log."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
+def _names(formats: list[str]) -> list[str]:
+    """The files a report writes, with its plots in ``formats``."""
+    return ["comparisons.csv", "report.txt", *(f"{stem}.{fmt}" for stem in PLOTS
+                                               for fmt in formats)]
+
+
+def _check_out(out: Path, sessions: list[Path], formats: list[str]) -> None:
+    """--out never inside a session it reports (its comparisons.csv would replace the
+    session's log), and no file it writes one rigkit did not write
+    (:mod:`rigkit.core.outputs`), said before the work."""
+    check_output_folder(out, "--out")
     check_outside(out / "comparisons.csv", sessions, f"--out {out}")
+    check_outputs(out, _names(formats), "--out")
 
 
 def _write_all(out: Path, files: dict[str, str | bytes]) -> None:
-    """All report files at once (:func:`rigkit.core.files.write_together`); a folder that
-    cannot be created or written is a one-line error naming --out."""
+    """All report files at once (:func:`rigkit.core.outputs.write_outputs`); a folder
+    that cannot be created or written is a one-line error naming --out."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
     try:
-        write_together(out, files)
+        write_outputs(out, files, "--out")
     except OSError as exc:
         raise InputError(f"--out {out}: cannot write the report ({exc.strerror})") from None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count, finite
+from rigkit.commands import count, finite, output_file
 from rigkit.rig.defaults import (
     CRITICAL_W,
     DISPARITY_ERROR_PX,
@@ -147,7 +147,7 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     )
     calibrate.add_argument("sessions", metavar="SESSION", type=Path, nargs="+",
                            help="processed session folders of one rig")
-    calibrate.add_argument("--out", type=Path, required=True, help="the profile to write")
+    calibrate.add_argument("--out", type=output_file, required=True, help="the profile to write")
     calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
                            help="one laser reading's one-sigma error, m (default "
                                 f"{LASER_ACCURACY_M:g})")
@@ -161,7 +161,8 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     calibrate.add_argument("--beyond-tolerance", action="store_true",
                            help="let the lasers overrule a profile value they find beyond "
                                 "its tolerance (the tape was wrong) instead of refusing")
-    calibrate.add_argument("--force", action="store_true", help="overwrite --out")
+    calibrate.add_argument("--force", action="store_true",
+                           help="replace --out, where it is a profile rigkit wrote")
     calibrate.set_defaults(runner="rigkit.commands.rig_run:run_calibrate")
 
 

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rigkit.commands.rig import DEFAULT_RANGE_M
+from rigkit.core.tables import visible
 from rigkit.reporting.rig_check import format_check
 from rigkit.rig import RigProfile, load_rig
 from rigkit.rig.check import check_rig, check_to_dict
@@ -19,7 +20,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     """``rigkit rig calibrate``: 0 when the profile is written, 1 where the lasers know
     nothing better than the tape (nothing written)."""
     from rigkit.capture.session import check_outside
-    from rigkit.core.files import check_creatable, write_text
+    from rigkit.core.files import check_creatable
+    from rigkit.core.outputs import check_output_file, write_outputs
     from rigkit.errors import InputError
     from rigkit.reporting.calibration_report import calibration_record, format_calibration
     from rigkit.reporting.scale import plain, read_sessions
@@ -33,6 +35,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in (".yaml", ".yml"):
         raise InputError(f"{what}: expected a .yaml file name for the profile")
     check_outside(out, [*args.sessions, *args.check_session], what)
+    check_output_file(out, "--out")  # --force replaces only a profile rigkit wrote
     check_creatable(out, what)
     if out.exists() and not args.force:
         raise InputError(f"{plain(str(out))}: exists; give --force to overwrite it")
@@ -47,7 +50,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         return 1
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        write_text(out, dump_rig(written.profile))
+        write_outputs(out.parent, {out.name: dump_rig(written.profile)}, "--out")
     except OSError as exc:
         raise InputError(f"{what}: cannot write the profile ({exc.strerror})") from None
     print(f"wrote {plain(str(out))} ({plain(written.profile.name)}); use it: rigkit session "
@@ -69,7 +72,9 @@ def run_check(args: argparse.Namespace) -> int:
         shimmer_corr_px=args.shimmer_corr_px,
         capture_findings=_capture_findings(profile, args.capture),
     )
-    print(json.dumps(check_to_dict(result), indent=2) if args.json else format_check(result))
+    # EXIF text (a camera's model) is a file's: shown, never obeyed by the terminal
+    print(json.dumps(check_to_dict(result), indent=2) if args.json
+          else visible(format_check(result)))
     return 1 if result.findings else 0
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count, finite
+from rigkit.commands import count, finite, output_folder
 from rigkit.commands.session_position import register_set_position, register_set_rig
 
 EXAMPLE = """examples:
@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
 
     new = actions.add_parser("new", help="create a session folder")
-    new.add_argument("session", type=Path, help="folder to create, e.g. capture/ridge-0412")
+    new.add_argument("session", type=output_folder,
+                     help="folder to create, e.g. capture/ridge-0412")
     new.add_argument("--rig", type=Path, required=True, help="rig profile YAML (copied in)")
     new.add_argument("--operator", default="", help="who captured it")
     new.add_argument("--notes", default="", help="free text: site, weather, anything")

@@ -9,7 +9,7 @@ import sys
 from dataclasses import asdict
 
 from rigkit.capture import POSITIONS, frame_problems, load_session, session_to_data, utc_now
-from rigkit.capture.actions import changing, create_session, remove_frame
+from rigkit.capture.actions import changing, create_session, remove_frame, stored_name
 from rigkit.capture.checks import check_capture
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run, read_rows
 from rigkit.capture.field import ingest
@@ -44,6 +44,10 @@ def run_add_frame(args: argparse.Namespace) -> int:
     session = done.session
     burst = session.bursts[args.position]
     frame = burst[-1]
+    if stored_name(args.file.name) != args.file.name:
+        print(f"note: {visible(args.file.name, lines=False)} holds characters that are not "
+              f"shown as they are (control, invisible or not UTF-8): stored as {frame.file}, "
+              "the name as given kept as its source in session.yaml")
     width, height = frame.size_px
     count = f", frame {len(burst)} of the burst" if len(burst) > 1 else ""
     print(f"{args.position}: {frame.file} ({width}x{height} px, sha256 {frame.sha256[:12]}"
@@ -60,7 +64,7 @@ def _print_exif_findings(session: Session) -> None:
     paths = [session.frame_path(p) for p in ("left", "right", "back")]
     findings = check_capture(session.rig(), paths)
     for finding in findings:
-        print(f"warning: {finding.message}")
+        print(f"warning: {visible(finding.message, lines=False)}")
     if not findings:
         print("all three frames present; EXIF agrees with the rig profile")
 
@@ -158,7 +162,7 @@ def run_show(args: argparse.Namespace) -> int:
             pass
     except InputError as exc:  # busy, read-only or hostile: say why, show it as it is
         session = load_session(args.session)  # one that cannot be read says only that
-        print(f"warning: not repaired: {exc}", file=sys.stderr)
+        print(f"warning: not repaired: {visible(str(exc), lines=False)}", file=sys.stderr)
     if args.json:
         print(json.dumps(_show_data(session), indent=2))
     else:
@@ -188,9 +192,12 @@ def _show_data(session: Session) -> dict[str, object]:
 def _last_rows(session: Session) -> list[Comparison]:
     log = session.path / LOG_NAME
     torn: list[str] = []
-    rows = latest_run(read_rows(log, torn)) if log.is_file() else []
+    try:
+        rows = latest_run(read_rows(log, torn)) if log.is_file() else []
+    except InputError as exc:  # the session is shown all the same
+        torn, rows = [str(exc)], []
     for problem in torn:
-        print(f"warning: {problem}", file=sys.stderr)
+        print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
     return rows
 
 

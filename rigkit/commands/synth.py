@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import finite
+from rigkit.commands import finite, output_folder
 
 EXAMPLE = """example:
   rigkit synth out/scene-7 --seed 7                      # paper protocol, 4608x3456, 6 deg, 300 m
@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLE,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("out_dir", type=Path, help="folder to write (created if missing)")
+    p.add_argument("out_dir", type=output_folder, help="folder to write (created if missing)")
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same scene")
     p.add_argument("--rig", type=Path, help="rig profile YAML: image size, f, baselines, offset")
     p.add_argument("--width", type=int, help="image width, px (default 4608)")

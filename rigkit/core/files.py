@@ -24,6 +24,7 @@ import hashlib
 import os
 import secrets
 import shutil
+import stat
 import tempfile
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
@@ -31,7 +32,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from rigkit.core.safefs import open_regular
+from rigkit.core.safefs import open_input, open_regular
 from rigkit.errors import InputError
 
 #: What :func:`write_file` writes: text (UTF-8), bytes, or an array (``.png``: BGR or
@@ -43,16 +44,21 @@ _RETIRED = "old"
 
 def file_sha256(path: Path) -> str:
     """Hex SHA-256 of a file's bytes, read in 1 MiB blocks; InputError naming the file
-    when it cannot be read."""
-    digest = hashlib.sha256()
+    when it is no regular file (:func:`rigkit.core.safefs.open_input`) or cannot be
+    read."""
     try:
-        with Path(path).open("rb") as handle:
-            for block in iter(lambda: handle.read(1 << 20), b""):
-                digest.update(block)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
+        return fd_sha256(open_input(Path(path)))  # never a FIFO or a device
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def fd_sha256(fd: int) -> str:
+    """Hex SHA-256 of the bytes of the file open at ``fd`` from where it stands, read in
+    1 MiB blocks; the descriptor is closed. OSError if it cannot be read."""
+    digest = hashlib.sha256()
+    with os.fdopen(fd, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
     return digest.hexdigest()
 
 
@@ -176,6 +182,31 @@ def write_with(path: Path, dump: Callable[[BinaryIO], object]) -> None:
         raise
 
 
+def write_at(folder_fd: int, name: str, data: bytes) -> None:
+    """Replace ``name`` in the folder open at ``folder_fd`` with ``data`` atomically, as
+    :func:`write_bytes` does, every step relative to the descriptor (the temporary
+    file created without following a link): a folder of an untrusted session swapped
+    for a link meanwhile does not redirect the write."""
+    while True:
+        tmp = f".{name}.{secrets.token_hex(4)}.tmp"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                         0o666, dir_fd=folder_fd)
+            break
+        except FileExistsError:
+            continue
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, name, src_dir_fd=folder_fd, dst_dir_fd=folder_fd)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp, dir_fd=folder_fd)
+        raise
+
+
 def write_bytes(path: Path, data: bytes) -> None:
     """Replace ``path`` with ``data`` atomically."""
     write_with(path, lambda handle: handle.write(data))
@@ -247,25 +278,30 @@ def fsync_folder(folder: Path) -> None:
             os.close(fd)
 
 
-def write_together(folder: Path, files: Mapping[str, Content]) -> None:
+def write_together(folder: Path, files: Mapping[str, Content],
+                   check: Callable[[Path], None] | None = None) -> None:
     """Write ``files`` (name -> content) into ``folder``: all of them into a hidden
     temporary folder inside it first, then each renamed into place, so a failure never
     leaves a mix of old and new outputs that looks complete. OSError if a write fails;
     nothing temporary is left behind either way. The files are encoded and written
     side by side (:class:`rigkit.core.threads.ViewPool`: a PNG is compressed while an
-    array is written); the first failure in ``files``' order is raised."""
+    array is written); the first failure in ``files``' order is raised. ``check``: as
+    for :func:`staged_files`."""
     from rigkit.core.threads import ViewPool
 
-    with staged_files(folder) as tmp, ViewPool() as pool:
+    with staged_files(folder, check) as tmp, ViewPool() as pool:
         pool.map(_write_new, [tmp / name for name in files], files.values())
 
 
 @contextlib.contextmanager
-def staged_files(folder: Path) -> Iterator[Path]:
+def staged_files(folder: Path, check: Callable[[Path], None] | None = None
+                 ) -> Iterator[Path]:
     """A hidden temporary folder inside ``folder`` to write several files into (streamed,
     by any writer); when the block ends normally each file is fsynced and renamed into
     ``folder``, replacing any of the same name. If the block raises, the temporary
-    folder and everything in it is removed and ``folder`` is left as it was."""
+    folder and everything in it is removed and ``folder`` is left as it was.
+    ``check(target)``, called for every target before the first rename, may refuse the
+    lot by raising (:mod:`rigkit.core.outputs`: a file that appeared meanwhile)."""
     folder = Path(folder)
     _remove_stale_staging(folder)
     with tempfile.TemporaryDirectory(dir=folder, prefix=f"{STAGING_PREFIX}{os.getpid()}-") as tmp:
@@ -273,6 +309,8 @@ def staged_files(folder: Path) -> Iterator[Path]:
         staged = sorted(Path(tmp).iterdir())
         for path in staged:
             _fsync_file(path)
+            if check is not None:
+                check(folder / path.name)
         for path in staged:
             os.replace(path, folder / path.name)
     fsync_folder(folder)
@@ -321,35 +359,84 @@ def replace_folder(
     the retired one deleted. Readers see the old folder or the new one; a crash leaves
     something :func:`recover_folder` repairs (it runs first here too). On a failure
     before the swap, the staged folder is removed and the current one is untouched.
+    Every step is taken relative to ``parent``'s descriptor, and the files are written
+    through the staged folder's, never following a link: ``parent`` may be a session
+    from someone else, and a folder swapped for a link meanwhile redirects nothing.
     """
     parent = Path(parent)
     recover_folder(parent, name)
     stage_id = stage_id or secrets.token_hex(4)
-    staging = parent / f".{name}-{stage_id}"
-    staging.mkdir()
+    staging, retired = f".{name}-{stage_id}", f".{name}-{_RETIRED}-{stage_id}"
+    folder = os.open(parent, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     try:
-        for file_name, content in files.items():
-            _write_new(staging / file_name, content)
-        fsync_folder(staging)
-        current = parent / name
-        retired = parent / f".{name}-{_RETIRED}-{stage_id}"
-        if current.exists():
-            os.rename(current, retired)
-        os.rename(staging, current)
-        fsync_folder(parent)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    shutil.rmtree(retired, ignore_errors=True)
+        os.mkdir(staging, dir_fd=folder)
+        try:
+            staged = os.open(staging, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC,
+                             dir_fd=folder)
+            try:
+                for file_name, content in files.items():
+                    _write_new_at(staged, file_name, content)
+                os.fsync(staged)
+            finally:
+                os.close(staged)
+            if _lexists_at(folder, name):
+                os.rename(name, retired, src_dir_fd=folder, dst_dir_fd=folder)
+            os.rename(staging, name, src_dir_fd=folder, dst_dir_fd=folder)
+            with contextlib.suppress(OSError):
+                os.fsync(folder)
+        except BaseException:
+            _remove_at(folder, staging)
+            raise
+        _remove_at(folder, retired)
+    finally:
+        os.close(folder)
 
 
 def recover_folder(parent: Path, name: str) -> None:
     """Undo an interrupted :func:`replace_folder`: if ``parent/name`` is gone, restore
-    the newest retired copy; then delete every staged or retired folder left over."""
-    parent = Path(parent)
-    current = parent / name
-    retired = sorted(parent.glob(f".{name}-{_RETIRED}-*"))
-    if not current.exists() and retired:
-        os.rename(retired.pop(), current)
-    for leftover in [*retired, *parent.glob(f".{name}-*")]:
-        shutil.rmtree(leftover, ignore_errors=True)
+    the newest retired copy; then delete every staged or retired folder left over (a
+    link among them is removed itself, never followed). Relative to ``parent``'s
+    descriptor, as :func:`replace_folder` works."""
+    folder = os.open(Path(parent), os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    try:
+        with os.scandir(folder) as entries:
+            names = sorted(entry.name for entry in entries)
+        retired = [n for n in names if n.startswith(f".{name}-{_RETIRED}-")]
+        if name not in names and retired:
+            os.rename(retired[-1], name, src_dir_fd=folder, dst_dir_fd=folder)
+            names.remove(retired[-1])
+        for leftover in names:
+            if leftover.startswith(f".{name}-"):
+                _remove_at(folder, leftover)
+    finally:
+        os.close(folder)
+
+
+def _write_new_at(folder_fd: int, name: str, content: Content) -> None:
+    """:func:`_write_new` of ``name`` in the folder open at ``folder_fd``."""
+    dump = _dump(Path(name), content)
+    fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                 0o666, dir_fd=folder_fd)
+    with os.fdopen(fd, "wb") as handle:
+        dump(handle)
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+def _lexists_at(folder_fd: int, name: str) -> bool:
+    try:
+        os.lstat(name, dir_fd=folder_fd)
+    except FileNotFoundError:
+        return False
+    return True
+
+
+def _remove_at(folder_fd: int, name: str) -> None:
+    """Remove ``name`` from the folder open at ``folder_fd``, whatever it is (a folder
+    with all it holds, without following a link inside; a link or file itself); best
+    effort."""
+    with contextlib.suppress(OSError):
+        if stat.S_ISDIR(os.lstat(name, dir_fd=folder_fd).st_mode):
+            shutil.rmtree(name, dir_fd=folder_fd, ignore_errors=True)
+        else:
+            os.unlink(name, dir_fd=folder_fd)

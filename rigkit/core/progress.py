@@ -32,6 +32,8 @@ from rich.progress import (
 )
 from rich.progress import Progress as RichProgress
 
+from rigkit.core.tables import visible
+
 OVERALL = "all"
 
 
@@ -84,9 +86,9 @@ class Progress:
     def print(self, line: str) -> None:
         """A line of output (shown even when quiet), above the bars on a terminal."""
         if self._live is not None:
-            self._live.console.print(line, markup=False, highlight=False)
+            self._live.console.print(visible(line), markup=False, highlight=False)
         else:
-            print(line, file=self.file, flush=True)
+            print(visible(line), file=self.file, flush=True)
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.t0
@@ -111,7 +113,7 @@ class Progress:
         if self._printed.get(task) == mark:
             return
         self._printed[task] = mark
-        what = f"{task}: {stage}" if stage else task
+        what = visible(f"{task}: {stage}" if stage else task, lines=False)
         head = f"[{100 * self.overall():3.0f}% {self.eta()}] {self.label}"
         print(f"{head}: {what} {pct}% ({self.elapsed():.1f} s)", file=self.file, flush=True)
 
@@ -120,7 +122,7 @@ class Progress:
     def _show_live(self, task: str) -> None:
         if self._live is None:
             self._live = RichProgress(
-                TextColumn("{task.description}"),
+                TextColumn("{task.description}", markup=False),  # names shown as they are
                 BarColumn(),
                 TaskProgressColumn(),
                 TimeRemainingColumn(),
@@ -131,12 +133,13 @@ class Progress:
             if len(self.fraction) > 1:
                 self._ids[OVERALL] = self._live.add_task(f"{self.label}: all", total=100)
         if task not in self._ids:
-            self._ids[task] = self._live.add_task(task, total=100)
+            self._ids[task] = self._live.add_task(visible(task, lines=False), total=100)
         stage = self.stage.get(task, "")
         self._live.update(
             self._ids[task],
             completed=100 * self.fraction[task],
-            description=f"{self.label}: {task}" + (f" ({stage})" if stage else ""),
+            description=visible(f"{self.label}: {task}" + (f" ({stage})" if stage else ""),
+                                lines=False),
         )
         self._update_overall()
 

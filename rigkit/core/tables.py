@@ -70,12 +70,23 @@ def render_table(
     return "\n".join(line if line.strip() else "" for line in lines)
 
 
-_CONTROL = {c: f"\\x{c:02x}" for c in (*range(32), 127) if chr(c) not in "\n\t"}
+def visible(text: str, *, lines: bool = True, markup: bool = False) -> str:
+    """``text`` safe to show, the one way every message and screen shows a name or text
+    that came from a file or a folder (a card file's name, a session's note, a path):
+    what it holds is shown, never obeyed. Every character that is not printable is
+    written out (``\\x1b``, ``\\u202e``, ``\\udcff``): control characters (an escape
+    sequence could redraw the screen, hide lines or retitle the window; a newline
+    forge a line of a log), Unicode's invisible and direction-changing ones, and the
+    bytes of a name that are not UTF-8 (which Python keeps as lone surrogates). Newline
+    and tab are kept where ``lines`` (a note of several lines), written out where not
+    (a name). ``markup``: for a screen that reads Rich/Textual markup, ``[`` escaped, so
+    a name such as ``[a="b]x.png`` is shown as it is rather than read as a tag."""
+    shown = "".join(c if c.isprintable() or (lines and c in "\n\t") else _written_out(c)
+                    for c in text)
+    return shown.replace("[", "\\[") if markup else shown
 
 
-def visible(text: str) -> str:
-    """``text`` with every control character but newline and tab written out as
-    ``\\xNN``: what a session from someone else holds (a note, an operator's name) is
-    shown, not obeyed by the terminal (an escape sequence could redraw the screen,
-    hide lines or retitle the window)."""
-    return text.translate(_CONTROL)
+def _written_out(char: str) -> str:
+    code = ord(char)
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 \
+        else f"\\U{code:08x}"

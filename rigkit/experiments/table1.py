@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigkit.core.files import write_bytes, write_text
+from rigkit.core.outputs import check_outputs, write_outputs
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
 from rigkit.experiments.defaults import METHODS
@@ -42,6 +42,8 @@ PAPER_TABLE1 = {
     "sfm-mvs": (15, 6.71, 12.7, 19.1),
 }
 CSV_FIELDS = ("method", "failures", "lt05", "lt1", "lt2", "lt3", "bias")
+OUTPUTS = ("table1.csv", "table1_scenes.csv", "table1.png")
+"""What :func:`run_table1` writes into its folder."""
 
 
 @dataclass(frozen=True)
@@ -159,18 +161,20 @@ def table_text(rows: Sequence[MethodRow]) -> str:
     return render_table(header, lines, left=[0, 7])
 
 
-def write_table_csv(rows: Sequence[MethodRow], path: Path) -> None:
+def table_csv(rows: Sequence[MethodRow]) -> str:
+    """``table1.csv``: one row per method."""
     buf = io.StringIO()
     writer = csv.writer(buf)
     writer.writerow(CSV_FIELDS)
     for r in rows:
         writer.writerow([r.method, r.failures, *(f"{v:.4f}" for v in
                         (r.lt05, r.lt1, r.lt2, r.lt3, r.bias))])
-    write_text(path, buf.getvalue())
+    return buf.getvalue()
 
 
-def write_scene_csv(per_scene: dict[str, list[Metrics]], path: Path) -> None:
-    """Every scene's metrics per method (fractions, as rigkit eval writes them)."""
+def scenes_csv(per_scene: dict[str, list[Metrics]]) -> str:
+    """``table1_scenes.csv``: every scene's metrics per method (fractions, as rigkit
+    eval writes them)."""
     buf = io.StringIO()
     fields = ["method", *Metrics.__dataclass_fields__]
     writer = csv.DictWriter(buf, fieldnames=fields)
@@ -178,7 +182,7 @@ def write_scene_csv(per_scene: dict[str, list[Metrics]], path: Path) -> None:
     for method, rows in per_scene.items():
         for m in rows:
             writer.writerow({"method": method, **m.__dict__})
-    write_text(path, buf.getvalue())
+    return buf.getvalue()
 
 
 def figure_png(rows: Sequence[MethodRow], title: str) -> bytes:
@@ -224,6 +228,7 @@ def run_table1(
     on each, write ``table1.csv``, ``table1_scenes.csv`` and ``table1.png`` to ``out``
     and return the table's rows."""
     report = progress or (lambda task, frac, stage: None)
+    check_outputs(out, OUTPUTS, "--out")  # before the work (rigkit.core.outputs)
     per_scene: dict[str, list[Metrics]] = {m: [] for m in methods}
     for seed, folder in zip(seeds, scene_dirs(out, seeds, params), strict=True):
         name = folder.name
@@ -238,8 +243,7 @@ def run_table1(
             per_scene[method].append(m)
         report(name, 1.0, "done")
     rows = [summarise(m, per_scene[m]) for m in methods]
-    write_table_csv(rows, out / "table1.csv")
-    write_scene_csv(per_scene, out / "table1_scenes.csv")
     title = f"{len(seeds)} scenes at {params.width}x{params.height}"
-    write_bytes(out / "table1.png", figure_png(rows, title))
+    contents = (table_csv(rows), scenes_csv(per_scene), figure_png(rows, title))
+    write_outputs(out, dict(zip(OUTPUTS, contents, strict=True)), "--out")
     return rows

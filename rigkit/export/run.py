@@ -7,7 +7,8 @@ The map is read in chunks of rows (:func:`rigkit.export.points.point_chunks`), a
 point format is written from the same chunks, which also gather the DSM's extent and
 spacing; the DSM grids the points in a second pass (:mod:`rigkit.export.dsm`). All files
 are staged in a hidden folder inside the output folder and renamed into place together at
-the end (:func:`rigkit.core.files.staged_files`), so a failure leaves no partial output.
+the end (:func:`rigkit.core.outputs.staged_outputs`), so a failure leaves no partial output,
+and never over a file rigkit did not write nor inside a session's own parts.
 
 ``--frame auto`` places the points on the map when the session has a tripod position and
 falls back to the camera frame, saying why in one line, when its orientation cannot be
@@ -28,7 +29,8 @@ from typing import Any
 import numpy as np
 
 from rigkit.capture.session import utc_now
-from rigkit.core.files import check_writable_folder, staged_files
+from rigkit.core.files import check_writable_folder
+from rigkit.core.outputs import check_output_folder, check_outputs, staged_outputs
 from rigkit.core.signals import terminate_as_interrupt
 from rigkit.errors import InputError
 from rigkit.export.defaults import VERTICAL_RECORDED
@@ -153,14 +155,16 @@ def export_depth(source: DepthMap, out: Path, formats: Sequence[str], *, step: i
     if cell is not None and not (math.isfinite(cell) and cell > 0):
         raise InputError(f"--cell {cell:g}: expected a positive size")
     report = progress or (lambda stage, fraction: None)
+    names = [_file_name(source, fmt) for fmt in formats] + [source.name + SIDECAR_SUFFIX]
+    check_output_folder(out, "--out")  # the rule for outputs (rigkit.core.outputs)
     check_writable_folder(out, f"--out {out}")
+    check_outputs(out, names, "--out")
     report("counting points", 0.0)
     count = count_points(source.depth, step)
     if count == 0 and set(formats) - {"tif"}:
         raise InputError(f"{source.name}: the depth map has no estimated pixel to export")
-    names = [_file_name(source, fmt) for fmt in formats] + [source.name + SIDECAR_SUFFIX]
     try:
-        with terminate_as_interrupt(), staged_files(out) as staging:  # SIGTERM cleans up
+        with terminate_as_interrupt(), staged_outputs(out, names, "--out") as staging:
             clouds = [fmt for fmt in formats if fmt in CLOUDS]
             footprint = Footprint() if "dsm" in formats else None
             filled = _write_clouds(source, staging, clouds, count, step, georef, footprint,

@@ -20,9 +20,10 @@ import numpy as np
 from rigkit.capture.model import Session
 from rigkit.capture.results import RunFiles, RunRecord, read_record, stale_results
 from rigkit.capture.session import is_session, load_session
-from rigkit.core.safefs import check_regular, real_folder
+from rigkit.core.safefs import check_regular, read_input, real_folder
 from rigkit.errors import InputError
 from rigkit.export.runinfo import RunInfo
+from rigkit.imagefile.imagesize import MAX_FRAME_BYTES, MAX_FRAME_PIXELS
 from rigkit.pipeline.estimate import FLAG_FILLED
 from rigkit.pipeline.lens import Lens
 
@@ -146,13 +147,18 @@ def _flags(path: Path, shape: tuple[int, ...]) -> np.ndarray | None:
 
 
 def _maps(files: RunFiles, remake: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Depth and sigma memory-mapped, grey read; all (H, W) and of one size."""
+    """Depth and sigma memory-mapped, grey read; all (H, W) and of one size, no larger
+    than the largest frame (a map beyond it is refused before it is read)."""
     depth_path, grey_path = files.depth, files.grey
     depth, sigma = (_npy(p) for p in (files.depth, files.sigma))
+    if depth.size > MAX_FRAME_PIXELS:
+        raise InputError(f"{depth_path}: a {'x'.join(map(str, depth.shape[::-1]))} map, "
+                         f"beyond the {MAX_FRAME_PIXELS / 1e6:.0f} MP of the largest frame")
     if not grey_path.is_file():
         raise InputError(f"{grey_path}: missing (written since rigkit records the grey "
                          f"values for export); run `{remake}` again")
-    data = np.fromfile(grey_path, np.uint8)  # read by Python: no file name reaches OpenCV
+    # read by Python (no file name reaches OpenCV), never a FIFO, at most a frame's size
+    data = np.frombuffer(read_input(grey_path, MAX_FRAME_BYTES, "a grey image"), np.uint8)
     grey = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
     if grey is None:
         raise InputError(f"{grey_path}: cannot read the image")

@@ -9,8 +9,9 @@ import cv2
 import numpy as np
 
 from rigkit.core.chatter import attributed, captured_stderr
-from rigkit.core.safefs import require_file
+from rigkit.core.safefs import read_input
 from rigkit.errors import InputError
+from rigkit.imagefile.imagesize import MAX_FRAME_BYTES
 
 _CUT_SHORT = re.compile(r"premature end|unexpected end|data corrupted|read error|"
                         r"input buffer is incomplete", re.IGNORECASE)
@@ -41,9 +42,10 @@ def load_grey(path: str | Path) -> np.ndarray:
 def read_image_file(path: Path) -> bytes:
     """The bytes of the file at ``path``, read with Python's own I/O, so that no file name
     reaches OpenCV's C++ (a name that is not UTF-8, such as one holding the byte 0xff,
-    crashes its imread). InputError naming the file when it is missing or not a file."""
-    require_file(path)
-    return path.read_bytes()
+    crashes its imread). InputError naming the file when it is missing, not a regular
+    file (a FIFO or a device is refused unopened) or larger than
+    :data:`rigkit.imagefile.imagesize.MAX_FRAME_BYTES` (unread)."""
+    return read_input(path, MAX_FRAME_BYTES, "an image file")
 
 
 def decode_grey(path: Path, data: bytes) -> np.ndarray:

@@ -27,12 +27,14 @@ from __future__ import annotations
 
 import io
 import logging
+import os
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from rigkit.core.safefs import open_input
 from rigkit.errors import InputError
 
 # exifread logs "no EXIF found" and damaged fields as warnings; rigkit reports itself.
@@ -85,16 +87,15 @@ class ExifInfo:
 
 
 def read_exif(path: str | Path) -> ExifInfo:
-    """Read a frame's EXIF; InputError if the file cannot be opened.
+    """Read a frame's EXIF; InputError if the file cannot be opened or is no regular
+    file (a FIFO or a device is refused unopened: :func:`rigkit.core.safefs.open_input`).
 
     A file without EXIF gives an ExifInfo with every field None (``has_exif`` False).
     """
     path = Path(path)
     try:
-        with path.open("rb") as handle:
+        with os.fdopen(open_input(path), "rb") as handle:
             tags = _tags(handle)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such image") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read the image ({exc.strerror or exc})") from None
     values: dict[str, Any] = {}

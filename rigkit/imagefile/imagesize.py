@@ -15,11 +15,13 @@ width and height) is refused, never handed to a decoder to find out.
 
 from __future__ import annotations
 
+import os
 import re
 import struct
 from collections.abc import Callable
 from pathlib import Path
 
+from rigkit.core.safefs import open_input
 from rigkit.errors import InputError
 
 MAX_FRAME_PIXELS = 250_000_000
@@ -198,14 +200,15 @@ def check_before_copy(path: Path, expected: tuple[int, int] | None,
     :data:`HEAD_BYTES` a size beyond the largest frame or other than ``expected``. A file
     whose header is not there (a TIFF whose directory follows its pixels) is judged on
     its copy, as every frame is."""
-    size = path.stat().st_size
-    if size > MAX_FRAME_BYTES:
-        raise InputError(f"{path}: {size / 2**30:.1f} GB, larger than any frame rigkit "
-                         f"takes ({MAX_FRAME_BYTES / 2**30:.0f} GB); refused before copying")
+    with os.fdopen(open_input(path), "rb") as handle:  # never a FIFO or a device
+        size = os.fstat(handle.fileno()).st_size
+        if size > MAX_FRAME_BYTES:
+            raise InputError(f"{path}: {size / 2**30:.1f} GB, larger than any frame rigkit "
+                             f"takes ({MAX_FRAME_BYTES / 2**30:.0f} GB); refused before "
+                             "copying")
+        head = b"" if raw else handle.read(HEAD_BYTES)
     if raw:
         return
-    with path.open("rb") as handle:
-        head = handle.read(HEAD_BYTES)
     try:
         declared = header_size(path, head)
     except InputError:

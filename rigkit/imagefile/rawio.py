@@ -20,6 +20,7 @@ decoded grey image as a 16-bit PNG in a cache folder, named after the file's SHA
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,11 +30,17 @@ import cv2
 import numpy as np
 
 from rigkit.core.chatter import captured_stderr
-from rigkit.core.files import write_png
-from rigkit.core.safefs import require_file
+from rigkit.core.files import encode_png, write_at
+from rigkit.core.safefs import open_folder, open_input, read_regular, require_file, too_large
 from rigkit.errors import InputError
 from rigkit.imagefile.decode import check_decoder_output, decode_grey, read_image_file
-from rigkit.imagefile.imagesize import HEAD_BYTES, check_size, header_size
+from rigkit.imagefile.imagesize import (
+    HEAD_BYTES,
+    MAX_FRAME_BYTES,
+    MAX_FRAME_PIXELS,
+    check_size,
+    header_size,
+)
 from rigkit.imagefile.picture import picture_problem
 
 if TYPE_CHECKING:
@@ -172,14 +179,17 @@ def _open_raw(path: Path) -> rawpy.RawPy:
     Raises rawpy.LibRawError as rawpy.imread does."""
     import rawpy
 
-    with path.open("rb") as handle:
+    with os.fdopen(open_input(path), "rb") as handle:  # never a FIFO or a device
+        size = os.fstat(handle.fileno()).st_size
+        if size > MAX_FRAME_BYTES:  # LibRaw would read it whole
+            raise too_large(path, size, MAX_FRAME_BYTES, "a frame file")
         return rawpy.imread(handle)
 
 
 def _check_raw_container(path: Path) -> None:
     """InputError for a file with a RAW name whose content is another format that
     LibRaw would misreport, or a RAW format it cannot decode."""
-    with path.open("rb") as handle:
+    with os.fdopen(open_input(path), "rb") as handle:
         head = handle.read(16)
     for signature, kind, suffix in _NOT_RAW:
         if head.startswith(signature):
@@ -267,14 +277,14 @@ def _raw_grey(path: Path, cache_dir: Path | None, sha256: str | None,
               expected: tuple[int, int] | None, whose: str) -> np.ndarray:
     """A RAW frame's linear grey, from the cache where it holds it (see
     :func:`load_linear_grey`)."""
-    cache = _cache_path(cache_dir, sha256)
-    cached = _read_cache(cache) if cache is not None else None
+    name = _cache_name(sha256) if cache_dir is not None else None
+    cached = _read_cache(Path(cache_dir), name, expected) if cache_dir and name else None
     if cached is not None:
         return _from_u16(cached)
     grey16 = _to_u16(linear_grey(decode_raw(path, expected, whose)))
     grey = _with_picture(path, _from_u16(grey16))
-    if cache is not None:
-        _write_cache(cache, grey16)
+    if cache_dir is not None and name is not None:
+        _write_cache(Path(cache_dir), name, grey16)
     return grey
 
 
@@ -315,8 +325,7 @@ def declared_size(path: str | Path) -> tuple[int, int]:
     path = Path(path)
     if is_raw(path):
         return frame_size(path)
-    require_file(path)
-    with path.open("rb") as handle:
+    with os.fdopen(open_input(path), "rb") as handle:  # never a FIFO or a device
         head = handle.read(HEAD_BYTES)
     try:
         return header_size(path, head)
@@ -404,38 +413,61 @@ def _read_plain_grey(path: Path, expected: tuple[int, int] | None = None,
     return grey
 
 
-def _cache_path(cache_dir: Path | None, sha256: str | None) -> Path | None:
-    if cache_dir is None or sha256 is None:
+def _cache_name(sha256: str | None) -> str | None:
+    """The cache file's name for a frame of this SHA-256 (hex), None without one."""
+    if sha256 is None:
         return None
     if not _SHA256_PREFIX.match(sha256):
         raise ValueError(f"sha256 must be a hex digest, got {sha256!r}")
-    return Path(cache_dir) / f"{sha256[:16].lower()}{CACHE_SUFFIX}"
+    return f"{sha256[:16].lower()}{CACHE_SUFFIX}"
 
 
-def _read_cache(cache: Path) -> np.ndarray | None:
-    """The cached (H, W) uint16 grey image, or None when absent or not a valid cache:
-    one whose header cannot be read or declares more than the largest frame is not
-    decoded."""
-    if not cache.is_file():
-        return None
-    data = cache.read_bytes()
+def cache_limit(expected: tuple[int, int] | None) -> int:
+    """The largest cache file read for a frame of ``expected`` (W, H) px (None: the
+    largest frame), bytes: a 16-bit grey PNG stored without compression (a filter byte
+    a row, zlib's and the chunks' framing: under 1 %), and 1 MiB to spare."""
+    width, height = expected or (MAX_FRAME_PIXELS, 1)
+    return int(height * (1 + 2 * width) * 1.01) + (1 << 20)
+
+
+def _read_cache(cache_dir: Path, name: str, expected: tuple[int, int] | None
+                ) -> np.ndarray | None:
+    """The cached (H, W) uint16 grey image ``name`` in ``cache_dir``, or None where
+    there is none or no valid one (decoded again, the cache replaced): a link, a FIFO,
+    a file larger than :func:`cache_limit` (not read), a header that cannot be read or
+    declares another size than ``expected`` or the largest frame (not decoded).
+    ``cache_dir`` (a session's ``derived/``) must be a real folder: InputError naming it
+    otherwise (:func:`rigkit.core.safefs.open_folder`); the file is read relative to it."""
     try:
-        check_size(cache, header_size(cache, data), None)
+        folder = open_folder(cache_dir)
+    except FileNotFoundError:
+        return None
+    try:
+        data = read_regular(Path(name), cache_limit(expected), "a RAW cache file",
+                            dir_fd=folder)
+        shown = cache_dir / name
+        check_size(shown, header_size(shown, data), expected)
         img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-    except (InputError, cv2.error):
+    except (OSError, InputError, cv2.error):
         img = None
+    finally:
+        os.close(folder)
     if img is None or img.ndim != 2 or img.dtype != np.uint16:
         return None  # damaged or foreign: decode again and overwrite it
     return img
 
 
-def _write_cache(cache: Path, grey16: np.ndarray) -> None:
-    """Write (H, W) uint16 as a PNG at ``cache`` atomically (:mod:`rigkit.core.files`)."""
+def _write_cache(cache_dir: Path, name: str, grey16: np.ndarray) -> None:
+    """Write (H, W) uint16 as the PNG ``name`` in ``cache_dir`` (made if missing; never
+    through a link) atomically (:func:`rigkit.core.files.write_at`)."""
     try:
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        write_png(cache, grey16)
+        folder = open_folder(cache_dir, create=True)
+        try:
+            write_at(folder, name, encode_png(grey16))
+        finally:
+            os.close(folder)
     except OSError as exc:
-        raise InputError(f"{cache}: cannot write the RAW cache ({exc})") from None
+        raise InputError(f"{cache_dir / name}: cannot write the RAW cache ({exc})") from None
 
 
 def _to_u16(grey: np.ndarray) -> np.ndarray:

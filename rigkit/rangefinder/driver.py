@@ -25,11 +25,13 @@ import time
 from collections import deque
 from dataclasses import dataclass, fields, replace
 from datetime import UTC, datetime
+from pathlib import Path
 from types import TracebackType
 from typing import Any, Protocol, TextIO
 
 import serial
 
+from rigkit.core.outputs import OutputLog
 from rigkit.errors import InputError
 from rigkit.rangefinder.defaults import DEFAULT_TIMEOUT_S
 from rigkit.rangefinder.framing import (
@@ -408,11 +410,8 @@ def open_rangefinder(
     if stopbits not in STOPBITS:
         raise InputError(f"stop bits must be 1, 1.5 or 2, got {stopbits}")
     log: TextIO | None = None
-    if log_path is not None:
-        try:
-            log = open(log_path, "a", encoding="ascii")
-        except OSError as exc:
-            raise InputError(f"cannot open raw log {os.fspath(log_path)}: {exc.strerror}") from None
+    if log_path is not None:  # never a file rigkit did not start, a link or a FIFO
+        log = OutputLog(Path(log_path), "--raw-log", encoding="ascii")
     port: Any
     if isinstance(url, str):
         name = url

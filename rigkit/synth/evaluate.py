@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 
 from rigkit.capture.results import RunFiles, session_comparisons
-from rigkit.core.files import write_text
+from rigkit.core.outputs import write_outputs
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
 from rigkit.pipeline.settings import PipelineSettings
@@ -247,10 +247,12 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None,
     if estimate_path is None:
         where = f" (looked for {', '.join(map(str, looked))})" if looked else ""
         return failed_metrics(name, f"no depth estimate{where}")
-    try:
-        est = np.load(estimate_path)
+    try:  # its header first: a map of another size is not read (depth_metrics says so)
+        est = np.load(estimate_path, mmap_mode="r")
     except (OSError, ValueError) as exc:
         return failed_metrics(name, f"unreadable estimate {estimate_path}: {exc}")
+    if not isinstance(est, np.ndarray) or est.ndim != 2:
+        return failed_metrics(name, f"unreadable estimate {estimate_path}: not an (H, W) map")
     depth, judged, flat = truth.depth("left"), visible_in_right(truth), truth.flat()
     if flat is not None:
         judged &= ~flat
@@ -345,7 +347,8 @@ def _csv_row(m: Metrics, with_changes: bool) -> dict[str, object]:
 
 def write_csv(rows: Sequence[Metrics], path: Path) -> None:
     """The table as CSV: one row per scene, the change scores as more columns when any
-    scene has them; written whole or not at all (:func:`rigkit.core.files.write_text`)."""
+    scene has them; written whole or not at all, never over a file rigkit did not write
+    (:func:`rigkit.core.outputs.write_outputs`)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with_changes = any(m.changes is not None for m in rows)
     table = [_csv_row(m, with_changes) for m in rows]
@@ -353,7 +356,7 @@ def write_csv(rows: Sequence[Metrics], path: Path) -> None:
     writer = csv.DictWriter(buffer, fieldnames=list(table[0]), lineterminator="\n")
     writer.writeheader()
     writer.writerows(table)
-    write_text(path, buffer.getvalue())
+    write_outputs(path.parent, {path.name: buffer.getvalue()}, "--csv")
 
 
 def files_read(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[Path]:

@@ -27,9 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from rigkit.core.files import write_npy, write_png, write_text
+from rigkit.core.outputs import LEDGER, check_outputs, record_outputs
 from rigkit.core.yamlfile import dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Camera, distortion_coefficients
+from rigkit.imagefile.imagesize import MAX_FRAME_PIXELS
 from rigkit.synth.changes import moved_left, shadow_changed_left
 from rigkit.synth.render import Layers, expose, render_layers
 from rigkit.synth.scene import Scene, SynthParams
@@ -85,12 +87,16 @@ def check_out_folder(out_dir: Path, new: bool = False) -> None:
     if new:
         raise InputError(f"{out_dir}: holds files already ({shown}); a synthetic session "
                          "is written into a new or empty folder")
-    foreign = [n for n in names if not _WRITTEN.fullmatch(n)]
+    foreign = [n for n in names if not _WRITTEN.fullmatch(n) and n != LEDGER]
     truth = out_dir / "ground_truth"
     if (foreign or not _is_rendered(out_dir / SCENE_FILE)
             or truth.is_symlink() or (truth.exists() and not truth.is_dir())):
         raise InputError(f"{out_dir}: holds files that are no scene rendered by rigkit synth "
                          f"({shown}); give a new or empty folder")
+    for folder in (out_dir, truth):  # each file it replaces one rigkit wrote (its ledger)
+        if folder.is_dir():
+            check_outputs(folder, [p.name for p in folder.iterdir()
+                                   if p.name not in (LEDGER, "ground_truth")], "OUT_DIR")
 
 
 def _is_rendered(meta: Path) -> bool:
@@ -111,7 +117,23 @@ def write_scene(
     first). Returns seconds per view."""
     check_out_folder(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "ground_truth").mkdir(exist_ok=True)
+    truth = out_dir / "ground_truth"
+    truth.mkdir(exist_ok=True)
+    written: list[Path] = []  # recorded as rigkit's (rigkit.core.outputs), whatever happens:
+    # a name is listed before its file is written, and a file that is not there is not
+    # recorded
+    try:
+        timings = _write_views(scene, out_dir, progress, written)
+    finally:
+        for folder in (out_dir, truth):
+            record_outputs(folder, [p.name for p in written if p.parent == folder])
+    return timings
+
+
+def _write_views(scene: Scene, out_dir: Path, progress: Callable[[str, float], None] | None,
+                 written: list[Path]) -> dict[str, float]:
+    """:func:`write_scene`'s files, each added to ``written`` once it is in place."""
+    truth = out_dir / "ground_truth"
     timings: dict[str, float] = {}
     left: Layers | None = None
     for name in VIEWS:
@@ -119,15 +141,17 @@ def write_scene(
         cb = (lambda frac, n=name: progress(n, frac)) if progress else None
         layers = render_layers(scene, name, cb)
         for k in range(scene.params.burst):
-            image = expose(scene, name, layers.radiance, frame=k)
-            write_png(out_dir / frame_name(name, k), image, compression=3)
-        write_npy(out_dir / "ground_truth" / f"depth_{name}.npy", layers.depth)
+            written.append(out_dir / frame_name(name, k))
+            write_png(written[-1], expose(scene, name, layers.radiance, frame=k), compression=3)
+        written.append(truth / f"depth_{name}.npy")
+        write_npy(written[-1], layers.depth)
         if name == "left":
             left = layers
-            write_npy(out_dir / "ground_truth" / FLAT_FILE, layers.flat())
+            written.append(truth / FLAT_FILE)
+            write_npy(written[-1], layers.flat())
         timings[name] = time.perf_counter() - t0
     if left is not None and (scene.movers or scene.shadows):
-        truth = out_dir / "ground_truth"
+        written += [truth / MOVED_FILE, truth / SHADOW_FILE]
         write_npy(truth / MOVED_FILE, moved_left(scene, left.surface, left.depth))
         write_npy(truth / SHADOW_FILE, shadow_changed_left(scene, left.depth))
     meta = {
@@ -141,6 +165,7 @@ def write_scene(
         "gains": scene.gains,
         "geometry": scene.description(),
     }
+    written.append(out_dir / SCENE_FILE)
     write_text(out_dir / SCENE_FILE, dump_yaml(meta))
     return timings
 
@@ -203,10 +228,11 @@ def _params(values: dict) -> SynthParams:
 
 
 def _truth(path: Path, kind: type, ndim: int) -> np.ndarray:
-    """A ground-truth array of ``kind`` (a NumPy scalar type) and ``ndim`` dimensions;
-    InputError naming the file where it is none."""
+    """A ground-truth array of ``kind`` (a NumPy scalar type) and ``ndim`` dimensions,
+    no larger than the largest frame; InputError naming the file where it is none (said
+    from its header, before it is read)."""
     try:
-        array = np.load(path)
+        array = np.load(path, mmap_mode="r")
     except FileNotFoundError:
         raise InputError(f"{path}: missing ground truth") from None
     except (OSError, ValueError) as exc:
@@ -215,7 +241,9 @@ def _truth(path: Path, kind: type, ndim: int) -> np.ndarray:
             or not np.issubdtype(array.dtype, kind):
         raise InputError(f"{path}: not ground truth as rigkit synth writes it "
                          f"({getattr(array, 'dtype', '?')}, {getattr(array, 'ndim', '?')} axes)")
-    return array
+    if array.size > MAX_FRAME_PIXELS:
+        raise InputError(f"{path}: {array.size:,} values, beyond the largest frame")
+    return np.array(array)
 
 
 def load_scene(path: str | Path) -> SceneTruth:

@@ -35,6 +35,7 @@ from textual.worker import get_current_worker
 from rigkit.capture.model import POSITIONS, Session
 from rigkit.capture.session import is_session, load_session, log_event
 from rigkit.core.chatter import private_terminal
+from rigkit.core.tables import visible
 from rigkit.errors import InputError, RigkitError, environment_message
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.laser import LaserDesk, Shot
@@ -266,7 +267,7 @@ class FieldApp(App[None]):
 
     def on_loaded(self, message: Loaded) -> None:
         if message.error:
-            self._opening(f"[b $error]✘ {message.error}[/]\nq: quit")
+            self._opening(f"[b $error]✘ {visible(message.error, markup=True)}[/]\nq: quit")
             return
         from rigkit.tui.screens import StartScreen
 
@@ -287,16 +288,18 @@ class FieldApp(App[None]):
         if not self.screen_stack:
             return
         if isinstance(self.screen, OpeningScreen):
-            self.screen.say(message.text)
+            self.screen.say(visible(message.text, markup=True))
         else:
-            self.notify(message.text, severity=message.severity)  # type: ignore[arg-type]
+            self.notify(visible(message.text), severity=message.severity,  # type: ignore[arg-type]
+                        markup=False)
 
     # -- navigation -------------------------------------------------------------------------
 
     def open_session(self, session: Session) -> None:
-        """Show ``session`` at the step it stopped at (:func:`resume_step`), and follow
-        its laser."""
-        from rigkit.capture.field import resume_step
+        """Show ``session`` at the step it stopped at (:func:`resume_step`; where
+        session.yaml names a step this rigkit does not know, saying so), and follow its
+        laser."""
+        from rigkit.capture.field import resume_note, resume_step
 
         self.session = session
         if self.sub_title != session.name:
@@ -304,6 +307,10 @@ class FieldApp(App[None]):
         self.laser.selected = session.targets[-1].name if session.targets else None
         self._start_laser(session)
         self.goto(resume_step(session), resume=True)
+        note = resume_note(session)
+        if note:
+            self.notify(visible(note, lines=False), severity="warning", timeout=15,
+                        markup=False)
 
     def goto(self, step: str, resume: bool = False) -> None:
         """Replace the step on show with ``step``'s screen (``resume``: opening a
@@ -519,25 +526,34 @@ class FieldApp(App[None]):
     @work(thread=True, group="watch")
     def watch_folder(self, folder: Path) -> None:
         """Tell the app of each frame that arrives in ``folder``; when the folder goes
-        away (card removed), wait for it to come back."""
+        away (card removed), wait for it to come back. Nothing on the card ends the app:
+        what cannot be watched is said and skipped (:func:`rigkit.tui.watch.arrivals`)."""
         from rigkit.tui.watch import arrivals
 
         while not self.stop.is_set():
             if folder.is_dir():
-                for path in arrivals(folder, self.stop, self.config.settle_s):
-                    self.post_message(Arrival(path))
-                if not self.stop.is_set():
-                    self.post_message(Notice(f"{folder} is gone (card removed?); watching "
-                                             "again when it is back", "warning"))
+                try:
+                    for path in arrivals(folder, self.stop, self.config.settle_s, self._warn):
+                        self.post_message(Arrival(path))
+                except (OSError, RigkitError) as exc:
+                    self._warn(f"watching {folder}: {exc}; watching again")
+                else:
+                    if not self.stop.is_set():
+                        self._warn(f"{folder} is gone (card removed?); watching again "
+                                   "when it is back")
             self.stop.wait(1.0)
+
+    def _warn(self, line: str) -> None:
+        """From a worker: ``line`` as a warning."""
+        self.post_message(Notice(line, "warning"))
 
     def on_arrival(self, message: Arrival) -> None:
         """A frame landed: it is for the position on show when it landed."""
         path = message.path
         position = self.current_position()
         if position is None:
-            self.notify(f"{path.name} arrived; open a position to add it (it stays on the "
-                        "card)", severity="warning")
+            self.notify(f"{visible(path.name, lines=False)} arrived; open a position to add "
+                        "it (it stays on the card)", severity="warning", markup=False)
         elif not self._added_before(path):
             self.enqueue(FrameJob(position, path))
 
@@ -557,7 +573,8 @@ class FieldApp(App[None]):
 
     def on_ingest_file(self, message: IngestFile) -> None:
         if any(job.path == message.path for job in self._queued):
-            self.notify(f"{message.path.name} is being added already")
+            self.notify(f"{visible(message.path.name, lines=False)} is being added already",
+                        markup=False)
             return
         self.enqueue(FrameJob(message.position, message.path, message.retake))
 
@@ -681,8 +698,9 @@ class FieldApp(App[None]):
     def on_forward(self, message: Forward) -> None:
         tidings = message.tidings
         if isinstance(tidings, FrameHeld) and self.current_position() != tidings.position:
-            self.notify(f"{tidings.path.name} does not fit the {tidings.position} burst; it "
-                        "stays on the card (c adds it at a position)", severity="warning")
+            self.notify(f"{visible(tidings.path.name, lines=False)} does not fit the "
+                        f"{tidings.position} burst; it stays on the card (c adds it at a "
+                        "position)", severity="warning", markup=False)
         self._tell(tidings)
 
     def _tell(self, tidings: Tidings) -> None:

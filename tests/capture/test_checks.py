@@ -76,7 +76,7 @@ def test_read_exif_without_exif(tmp_path: Path) -> None:
 
 
 def test_read_exif_missing_file(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match=r"gone\.jpg: no such image"):
+    with pytest.raises(InputError, match=r"gone\.jpg: no such file"):
         read_exif(tmp_path / "gone.jpg")
 
 

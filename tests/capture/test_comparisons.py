@@ -33,9 +33,9 @@ def test_rows_as_written_are_read_back(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("change, why", [
-    (dict(laser_range_m=math.nan), "laser_range_m nan is not a range"),
-    (dict(laser_range_m=-300.0), "laser_range_m -300 is not a range"),
-    (dict(estimate_range_m=math.inf), "is not a range"),
+    (dict(laser_range_m=math.nan), "laser_range_m nan is no range"),
+    (dict(laser_range_m=-300.0), "laser_range_m -300 is no range"),
+    (dict(estimate_range_m=math.inf), "estimate_range_m nan is no range"),  # written "nan"
     (dict(error_pct=-0.1), "do not follow from the ranges"),
     (dict(error_m=5.0), "do not follow from the ranges"),
     (dict(status="fine"), "status 'fine'"),

@@ -85,7 +85,7 @@ def test_an_unwritable_output_is_refused_before_any_work(scene_dir, tmp_path, ca
     args = [str(scene_dir / f"{v}.png") for v in VIEWS]
     assert main(["depth", *args, "--out", str(tmp_path / "out.npy"), "--focal-px", "9159",
                  "--baseline-lr", "2", "--baseline-lb", "2", "--quiet"]) == 2
-    assert "a folder; give a file name" in capsys.readouterr().err
+    assert "out.npy is a folder, not a file rigkit may write" in capsys.readouterr().err
 
 
 def test_help_examples_name_files_that_exist(capsys, monkeypatch) -> None:

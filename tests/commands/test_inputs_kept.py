@@ -1,7 +1,9 @@
 """A command never writes over what it reads, nor over files it did not make: outputs
 named after an input, a profile written into a session, a table written onto a scene's
 own files, a rendering into someone's folder. Each is refused in one line before any
-work, exit status 2, and every input keeps its bytes."""
+work, exit status 2, and every input keeps its bytes (the rule for outputs,
+rigkit.core.outputs; every output option against every forbidden place:
+tests/commands/test_outputs.py)."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from rigkit.cli import main
+from rigkit.core.outputs import LEDGER
 from rigkit.synth import SceneTruth
 from tests.conftest import copy_session
 
@@ -49,9 +52,24 @@ def test_depth_outputs_named_after_an_input_are_refused(
     before = _digests(*frames)
     assert _depth(frames, truth, tmp_path / out, *more) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "would replace the input" in err
+    assert len(err.splitlines()) == 1 and "was not written by rigkit" in err
     assert _digests(*frames) == before
     assert not (tmp_path / out).exists()
+
+
+def test_an_output_of_rigkit_read_as_an_input_is_kept(
+    frames: list[Path], truth: SceneTruth, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A file rigkit wrote may be replaced by the next run, but not while it is read: the
+    grey image of one run given as the left frame of the next, to the same --out."""
+    assert _depth(frames, truth, tmp_path / "d.npy") == 0
+    capsys.readouterr()
+    grey = tmp_path / "d.grey.png"
+    before = _digests(grey)
+    assert _depth([grey, *frames[1:]], truth, tmp_path / "d.npy") == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "would replace the input" in err
+    assert _digests(grey) == before
 
 
 def test_an_input_reached_through_a_link_is_kept(
@@ -65,21 +83,22 @@ def test_an_input_reached_through_a_link_is_kept(
     linked.symlink_to(frames[0])
     before = _digests(frames[0])
     assert _depth([linked, *frames[1:]], truth, tmp_path / "left.npy", "--preview") == 2
-    assert "would replace the input" in capsys.readouterr().err
+    assert "was not written by rigkit" in capsys.readouterr().err
     assert _digests(frames[0]) == before
 
 
-def test_an_output_that_is_a_link_to_an_input_replaces_the_link_only(
-    frames: list[Path], truth: SceneTruth, tmp_path: Path
+def test_an_output_that_is_a_link_is_refused(
+    frames: list[Path], truth: SceneTruth, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A write renames a new file over the name: a link there is replaced, and the frame
-    it pointed to keeps its bytes, so the run goes ahead."""
+    """rigkit writes through no link, nor replaces one: the link and the frame it points
+    to stay as they are."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "d.grey.png").symlink_to(frames[0])
     before = _digests(*frames)
-    assert _depth(frames, truth, out / "d.npy") == 0
-    assert not (out / "d.grey.png").is_symlink()
+    assert _depth(frames, truth, out / "d.npy") == 2
+    assert "d.grey.png is a symbolic link" in capsys.readouterr().err
+    assert (out / "d.grey.png").is_symlink() and not (out / "d.npy").exists()
     assert _digests(*frames) == before
 
 
@@ -91,16 +110,20 @@ def test_eval_csv_onto_the_scene_is_refused(scene_dir: Path, scene_depth: tuple[
     estimates = tmp_path / "est"
     estimates.mkdir()
     shutil.copy(scene_depth[1] / "d.npy", estimates / f"{scene.name}.npy")
-    kept = _digests(*[p for p in scene.rglob("*") if p.is_file()], estimates / f"{scene.name}.npy")
+    kept = _digests(*[p for p in scene.rglob("*") if p.is_file() and p.name != LEDGER],
+                    estimates / f"{scene.name}.npy")
     for csv in (scene / "scene.yaml", scene / "ground_truth" / "depth_left.npy",
                 estimates / f"{scene.name}.npy"):
         assert main(["eval", str(scene), "--depth-dir", str(estimates), "--csv", str(csv)]) == 2
         err = capsys.readouterr().err
-        assert "expected a .csv file name" in err
+        assert "was not written by rigkit" in err and len(err.splitlines()) == 1
     named = scene / "ground_truth" / "notes.csv"
     named.write_text("kept\n")  # a scene folder's files are kept, read or not
     assert main(["eval", str(scene), "--depth-dir", str(estimates), "--csv", str(named)]) == 2
-    assert "would replace the input" in capsys.readouterr().err
+    assert "was not written by rigkit" in capsys.readouterr().err
+    assert main(["eval", str(scene), "--depth-dir", str(estimates), "--csv",
+                 str(tmp_path / "eval.txt")]) == 2
+    assert "expected a .csv file name" in capsys.readouterr().err
     assert named.read_text() == "kept\n"
     table = scene / "eval.csv"  # a new file there is no input
     assert main(["eval", str(scene), "--depth-dir", str(estimates), "--csv", str(table)]) == 0
@@ -117,7 +140,8 @@ def test_rig_calibrate_writes_no_profile_into_a_session(
                 session / "raw" / "rig.yml"):
         assert main(["rig", "calibrate", str(session), "--out", str(out), "--force"]) == 2
         err = capsys.readouterr().err
-        assert "kept as captured" in err and len(err.strip().splitlines()) == 1
+        assert ("kept as captured" in err or "which only rigkit's session commands write"
+                in err) and len(err.strip().splitlines()) == 1
     assert main(["rig", "calibrate", str(session), "--out", str(tmp_path / "x.txt")]) == 2
     assert "expected a .yaml file name" in capsys.readouterr().err
     assert _digests(*before) == before

@@ -149,7 +149,7 @@ def test_log_to_an_unwritable_file(tmp_path: Path, capsys: pytest.CaptureFixture
     target = tmp_path / "no-such-dir" / "laser.jsonl"
     code, _, err = run(["log", "--port", TRUPULSE, "--output", str(target)], capsys)
     assert code == 2
-    assert error_line(err).startswith(f"cannot append to {target}")
+    assert error_line(err).startswith(f"--output: cannot create {target}")
 
 
 def _rig_with(tmp_path: Path, rangefinder: dict[str, object]) -> Path:
@@ -236,15 +236,20 @@ def test_simulate_then_read_from_another_process(capsys: pytest.CaptureFixture[s
 def test_log_appends_to_nothing_but_a_log_of_readings(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """An image or the raw log given as --output is refused before the port opens and
+    """An image, or a raw log, given as --output is refused before the port opens and
     keeps its bytes; a log whose last line was cut short gets its next reading on a line
     of its own."""
     photo = tmp_path / "photo.png"
     photo.write_bytes(b"\x89PNG\r\n\x1a\n")
     code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(photo)],
                        capsys)
-    assert code == 2 and "holds something other than readings" in error_line(err)
+    assert code == 2 and "is no log rigkit started" in error_line(err)
     assert photo.read_bytes() == b"\x89PNG\r\n\x1a\n"
+    raw = tmp_path / "raw.txt"  # a log of rigkit's, but of the serial traffic
+    assert run(["read", "--port", TRUPULSE, "--raw-log", str(raw)], capsys)[0] == 0
+    code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(raw)],
+                       capsys)
+    assert code == 2 and "holds something other than readings" in error_line(err)
     same = tmp_path / "both.jsonl"
     code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(same),
                         "--raw-log", str(same)], capsys)
@@ -253,9 +258,11 @@ def test_log_appends_to_nothing_but_a_log_of_readings(
     os.mkfifo(fifo)  # opened, it would block the command until someone read it
     code, _, err = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(fifo)],
                        capsys)
-    assert code == 2 and "is a FIFO, not a file" in error_line(err)
+    assert code == 2 and "is a FIFO, not a log rigkit may append to" in error_line(err)
     log = tmp_path / "laser.jsonl"
-    log.write_text('{"slope_distance_m": 300.0}\n{"slope_dist')  # stopped mid-line
+    assert run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(log)], capsys)[0] == 0
+    with log.open("a") as torn:
+        torn.write('{"slope_dist')  # stopped mid-line
     code, _, _ = run(["log", "--port", TRUPULSE, "--count", "1", "--output", str(log)], capsys)
     lines = log.read_text(encoding="utf-8").splitlines()
     assert code == 0 and len(lines) == 3 and lines[1] == '{"slope_dist'

@@ -29,7 +29,7 @@ def test_report_command_writes_all_outputs(main, two_runs: Path, tmp_path: Path,
     out = tmp_path / "out" / "report"
     assert main(["report", str(two_runs), str(other), "--out", str(out)]) == 0
     stdout = capsys.readouterr().out
-    assert sorted(p.name for p in out.iterdir()) == sorted(OUTPUTS)  # no temporary left
+    assert sorted(p.name for p in out.iterdir()) == sorted([*OUTPUTS, ".rigkit-outputs"])
     report = (out / "report.txt").read_text()
     assert stdout.startswith(report) and "wrote " in stdout.splitlines()[-1]
     assert len(read_rows(out / "comparisons.csv")) == 5
@@ -83,7 +83,7 @@ def test_report_command_writes_each_plot_format(main, two_runs: Path, tmp_path: 
     assert main(["report", str(two_runs), "--out", str(out), "--format", "svg,pdf,png"]) == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(
-        ["comparisons.csv", "report.txt"]
+        ["comparisons.csv", "report.txt", ".rigkit-outputs"]
         + [f"{stem}.{fmt}" for stem in ("estimate_vs_laser", "error_vs_range")
            for fmt in ("png", "svg", "pdf")]
     )

@@ -59,3 +59,17 @@ def test_terminal_shows_bars_with_stage_and_eta() -> None:
     assert "process: s1 (stereo)" in text and "process: all" in text
     assert "50%" in text and "75%" in text  # s1, and the overall bar after s2 finished
     assert "    ok s0" in text
+
+
+def test_a_session_named_with_markup_and_escapes_is_shown_as_it_is() -> None:
+    """A session folder from someone else named ``[a="b]x`` ended `rigkit process` on a
+    terminal (a markup error in the bar's description), and its escapes reached the
+    terminal (issue 46)."""
+    name = '[a="b]x\x1b]0;owned\x07'
+    for out in (Terminal(), io.StringIO()):
+        with Progress("process", [name], file=out) as progress:
+            progress.update(name, 0.5, "stereo")
+            progress.print(f"FAILED {name}: \x1b[2J")
+        text = out.getvalue()
+        assert '[a="b]x\\x1b]0;owned\\x07' in text and "\\x1b[2J" in text
+        assert "owned\x07" not in text and "\x1b[2J" not in text

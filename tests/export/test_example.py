@@ -78,8 +78,9 @@ def test_the_bundled_example_as_ply_las_laz_and_tif(
     with pytest.warns(NotGeoreferencedWarning), rasterio.open(out / "example.tif") as raster:
         assert math.isnan(raster.nodata) and raster.crs is None and raster.count == 2
         assert np.array_equal(raster.read(1), depth, equal_nan=True)
-    assert sorted(p.name for p in out.iterdir()) == [
-        "example.export.json", "example.las", "example.laz", "example.ply", "example.tif"]
+    assert sorted(p.name for p in out.iterdir()) == [  # and the ledger of what rigkit wrote
+        ".rigkit-outputs", "example.export.json", "example.las", "example.laz", "example.ply",
+        "example.tif"]
     # And on the map by default, from a fresh clone's example: no step of the user's.
     assert main(["export", str(example), "--out", str(tmp_path / "map"), "--format", "las",
                  "--step", "4", "--quiet"]) == 0

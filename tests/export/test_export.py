@@ -110,8 +110,8 @@ def test_a_failure_leaves_no_partial_output(
 ) -> None:
     session = new_session(tmp_path)
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "geo.ply").write_bytes(b"the previous export")
+    export_path(session, out, ["ply"])  # the previous export
+    before = (out / "geo.ply").read_bytes()
     monkeypatch.setattr("rigkit.export.points.CHUNK_POINTS", 1000)
     calls = []
 
@@ -123,8 +123,9 @@ def test_a_failure_leaves_no_partial_output(
     monkeypatch.setattr("rigkit.export.las.LasWriter.write", full_disk)
     with pytest.raises(InputError, match="cannot write the export .No space left on device."):
         export_path(session, out, ["ply", "las"])
-    assert [p.name for p in out.iterdir()] == ["geo.ply"]  # no .las, no temporary folder
-    assert (out / "geo.ply").read_bytes() == b"the previous export"
+    assert sorted(p.name for p in out.iterdir()) == [  # no .las, no temporary folder
+        ".rigkit-outputs", "geo.export.json", "geo.ply"]
+    assert (out / "geo.ply").read_bytes() == before
 
 
 @pytest.mark.parametrize(("setup", "message"), [

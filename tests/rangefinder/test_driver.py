@@ -286,7 +286,7 @@ def test_bad_settings_are_input_errors(kwargs: dict[str, object], message: str) 
 
 
 def test_unwritable_raw_log_is_an_input_error(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match="cannot open raw log .*missing"):
+    with pytest.raises(InputError, match="--raw-log: cannot create .*missing"):
         open_rangefinder("sim://trupulse", log_path=tmp_path / "missing" / "raw.txt")
 
 

@@ -56,4 +56,5 @@ def test_scene_folder_records_the_world_and_its_masks(tmp_path) -> None:
     write_scene(generate_scene(SynthParams(width=160, height=120), 3), tmp_path / "still")
     assert load_scene(tmp_path / "still").changes() is None
     names = {p.name for p in (tmp_path / "still" / "ground_truth").iterdir()}
-    assert names == {"depth_left.npy", "depth_right.npy", "depth_back.npy", "flat_left.npy"}
+    assert names == {"depth_left.npy", "depth_right.npy", "depth_back.npy", "flat_left.npy",
+                     ".rigkit-outputs"}  # and the ledger of what rigkit wrote there

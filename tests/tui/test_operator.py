@@ -538,7 +538,8 @@ async def test_the_position_keys_are_in_the_key_bar_and_the_checks_fit(demo: Dem
         await opened(pilot, app)
         await take_position(pilot, app, "back")
         await wait_for(pilot, lambda: "DSCN0007" in text(app, "#card"), "the card line")
-        assert {"o", "c", "x", "n", "b", "q"} <= key_bar(app)
+        await wait_for(pilot, lambda: {"o", "c", "x", "n", "b", "q"} <= key_bar(app),
+                       "the position's keys in the key bar")  # drawn after the bindings change
         line = next(w for w in app.screen.query("#checks"))
         side_panel = app.screen.query_one("#side")
         assert "× → ~" in text(app, "#checks")

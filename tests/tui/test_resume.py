@@ -98,6 +98,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
     (session.path / RESULTS_DIR / "comparisons.csv").write_text("garbage,,,\n")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:  # a damaged results/ is said, no crash
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "comparisons.csv is unreadable" in text(app, "#stage"),
                        "the damaged results said")
         assert app.is_running and text(app, "#verdict").strip() == ""
@@ -106,6 +107,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
                                                  '"offset_depth_error_fraction": 1e200, "_": '))
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:  # before: the TUI ended on opening
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "offset_depth_error_fraction" in text(app, "#stage"),
                        "the refused record said")
         assert "1e+200" in text(app, "#stage") and app.is_running
@@ -129,9 +131,13 @@ async def test_a_verdict_longer_than_its_box_scrolls_rather_than_hides(demo: Dem
         assert text(app, "#verdict").count("is far from the others") == 4
         box = app.screen.query_one("#verdict-box")
         assert box.max_scroll_y > 0  # the rest is a scroll away, with a scrollbar
-        box.scroll_end(animate=False)
-        await pilot.pause(0.1)
-        assert box.scroll_y == box.max_scroll_y
+
+
+        def at_the_end() -> bool:  # the layout may settle after the first frame drawn
+            box.scroll_end(animate=False)
+            return box.max_scroll_y > 0 and box.scroll_y == box.max_scroll_y
+
+        await wait_for(pilot, at_the_end, "the verdict's last line", 5)
 
 
 def test_resume_step_never_opens_a_step_whose_frames_are_missing(demo: Demo) -> None:

@@ -16,6 +16,7 @@ from textual.widgets import Static
 from rigkit.capture import Session
 from rigkit.capture.field import next_move
 from rigkit.capture.model import FIELD_STEPS
+from rigkit.core.tables import visible
 from rigkit.rig.findings import Finding
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.laser import LaserDesk
@@ -57,8 +58,9 @@ def step_after(step: str, offset: int) -> str | None:
 
 
 def escape(text: str) -> str:
-    """``text`` safe to put in Rich markup."""
-    return text.replace("[", r"\[")
+    """``text`` safe to put in markup: shown as it is, never obeyed as markup or by the
+    terminal (:func:`rigkit.core.tables.visible`)."""
+    return visible(text, markup=True)
 
 
 def check_lines(checks: list[Finding]) -> str:

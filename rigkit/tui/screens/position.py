@@ -115,8 +115,8 @@ class PositionScreen(StepScreen):
 
     def _waiting(self) -> str:
         folder = self._folder()
-        source = f"watching {folder}" if folder else "no folder watched"
-        return f"{escape(source)}\nwaiting for the {self.position} frame (o: add a file)"
+        source = f"watching {escape(str(folder))}" if folder else "no folder watched"
+        return f"{source}\nwaiting for the {self.position} frame (o: add a file)"
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """The question's keys only while a frame is held (``f`` where a position
@@ -285,7 +285,7 @@ class PositionScreen(StepScreen):
     def action_leave_on_card(self) -> None:
         """Leave the held frame on the card (``c`` adds it later)."""
         if self.held is not None:
-            self.notify(f"{self.held.path.name} left on the card")
+            self.notify(f"{escape(self.held.path.name)} left on the card")
             self._answered()
 
     def action_place_here(self) -> None:
@@ -311,14 +311,14 @@ class PositionScreen(StepScreen):
         name = Path(frames[-1].file).name
         if self.dropping != frames[-1].file:
             self.dropping = frames[-1].file
-            self.notify(f"press x again to take {name} out of the {self.position} position "
-                        "(its file stays in raw/)", severity="warning", timeout=8)
+            self.notify(f"press x again to take {escape(name)} out of the {self.position} "
+                        "position (its file stays in raw/)", severity="warning", timeout=8)
             return
         self.dropping = ""
         session = remove_frame(session_of(self), self.position)
         self.post_message(SessionChanged(session))
-        self.notify(f"{name} taken out of the {self.position} position (the file stays in "
-                    "raw/)")
+        self.notify(f"{escape(name)} taken out of the {self.position} position (the file "
+                    "stays in raw/)")
         self._show_title(session)
         if frames_at(session, self.position):
             self._status("checking the frame before it ...")
@@ -332,8 +332,9 @@ class PositionScreen(StepScreen):
         frame that will fail processing. A held frame stays on the card."""
         if self.failed and not self.confirm:
             self.confirm = True
-            self.notify(f"the {self.position} frame failed a check; redo: {self.failed}. "
-                        "Press n again to go on anyway", severity="warning", timeout=8)
+            self.notify(f"the {self.position} frame failed a check; redo: "
+                        f"{escape(self.failed)}. Press n again to go on anyway",
+                        severity="warning", timeout=8)
             return
         self._leave_held()
         super().action_next()
@@ -344,5 +345,5 @@ class PositionScreen(StepScreen):
 
     def _leave_held(self) -> None:
         if self.held is not None:
-            self.notify(f"{self.held.path.name} stays on the card (c adds it)")
+            self.notify(f"{escape(self.held.path.name)} stays on the card (c adds it)")
             self.held = None

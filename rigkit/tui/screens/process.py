@@ -23,6 +23,7 @@ from rigkit.capture import Session, frame_problems, read_rows
 from rigkit.capture.comparisons import LOG_NAME, Comparison, latest_run
 from rigkit.capture.results import RunFiles, session_record, stale_results
 from rigkit.errors import RigkitError, environment_message
+from rigkit.imagefile.imagesize import MAX_FRAME_PIXELS
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
 from rigkit.reporting.verdict import Verdict, run_verdict
 from rigkit.tui.screens.common import LaserLine, escape, host, session_of
@@ -69,6 +70,7 @@ class ProcessScreen(ExportingScreen):
         super().__init__()
         self.resume = resume
         self._start: Timer | None = None  # processing about to start by itself
+        self._busy = False  # a run started here and its outcome not yet on show
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -94,9 +96,10 @@ class ProcessScreen(ExportingScreen):
             self._resume()
 
     def running(self) -> bool:
-        """Whether this screen's processing is under way."""
-        return any(w.node is self and w.group == "process" and w.is_running
-                   for w in self.workers)
+        """Whether this screen's processing is under way: from ``r`` until its outcome is
+        on show (set and cleared on the screen's thread, so a key pressed once the
+        verdict shows never finds the run's worker still ending)."""
+        return self._busy
 
     @work(thread=True, exclusive=True, group="resume")
     def _resume(self) -> None:
@@ -106,7 +109,7 @@ class ProcessScreen(ExportingScreen):
         session = session_of(self)
         verdict = None
         try:  # a damaged log or results/ is said, and r processes again
-            rows = latest_run(read_rows(session.path / LOG_NAME)) \
+            rows = latest_run(read_rows(session.path / LOG_NAME, [])) \
                 if (session.path / LOG_NAME).is_file() else []
             done = bool(rows) and RunFiles.of_session(session.path).depth.is_file()
             why = (stale_results(session) or "; ".join(frame_problems(session))) if done else ""
@@ -134,6 +137,7 @@ class ProcessScreen(ExportingScreen):
                         severity="warning")
             return
         self._stage("processing ...")
+        self._busy = True
         self._process()
 
     @work(thread=True, exclusive=True, group="process")
@@ -173,9 +177,7 @@ class ProcessScreen(ExportingScreen):
         except OSError as exc:  # a full disk, a read-only session
             self.deliver(self._failed, environment_message(exc))
             return
-        if view is not None:
-            self.deliver(self._show, view)
-        self.deliver(self._stage, "done; r: process again")
+        self.deliver(self._done, view)
 
     def on_unmount(self) -> None:
         self.workers.cancel_group(self, "process")
@@ -188,8 +190,16 @@ class ProcessScreen(ExportingScreen):
         self._stage(f"{escape(stage)} {100 * fraction:.0f} %")
         self.query_one(ProgressBar).update(progress=fraction)
 
+    def _done(self, view: Shown | None) -> None:
+        """A run's outcome on show, and the screen free for the next ``r`` or ``e``."""
+        if view is not None:
+            self._show(view)
+        self._stage("done; r: process again")
+        self._busy = False
+
     def _failed(self, message: str) -> None:
         """The error, and no earlier run's table, verdict or depth left beside it."""
+        self._busy = False
         self._stage(f"[b $error]✘ {escape(message)}[/]")
         self.query_one(DataTable).clear()
         self.query_one("#verdict", Static).update("")
@@ -223,9 +233,11 @@ def shown(session: Session, rows: Sequence[Comparison], verdict: Verdict) -> Sho
         table.append((row.target, _num(row.laser_range_m), _num(row.estimate_range_m), error,
                       "cal" if target.calibrated else "✔" if target.ok else "✘"))
     markup = verdict_markup(verdict, stray_warnings(session))  # what `rigkit process` says
-    try:
-        depth = np.load(RunFiles.of_session(session.path).depth)
+    try:  # its header first: nothing but a frame-sized map is read
+        depth = np.load(RunFiles.of_session(session.path).depth, mmap_mode="r")
     except (OSError, ValueError):
+        return Shown(tuple(table), markup, None, 0.0, 0.0)
+    if depth.ndim != 2 or depth.size > MAX_FRAME_PIXELS:
         return Shown(tuple(table), markup, None, 0.0, 0.0)
     lo, hi = depth_range(depth)
     image = cv2.cvtColor(colour_map(depth, lo, hi), cv2.COLOR_BGR2RGB)

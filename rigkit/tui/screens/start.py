@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 from rich.text import Text
@@ -12,6 +13,7 @@ from textual.widgets import DataTable, Footer, Header, Input, Static
 from rigkit.capture import is_session, load_session
 from rigkit.capture.actions import create_session_in
 from rigkit.capture.field import frames_at, resume_step
+from rigkit.core.tables import visible
 from rigkit.errors import RigkitError
 from rigkit.tui.messages import OpenSession
 from rigkit.tui.screens.common import FieldScreen, escape, host
@@ -25,7 +27,7 @@ class StartScreen(FieldScreen):
 
     def compose(self) -> ComposeResult:
         yield Header()
-        yield Static("Sessions in " + str(host(self).config.capture), classes="title")
+        yield Static("Sessions in " + escape(str(host(self).config.capture)), classes="title")
         yield DataTable(id="sessions", cursor_type="row")
         yield Static("Enter: open the selected session   Tab: start a new one below",
                      id="hint")
@@ -38,9 +40,8 @@ class StartScreen(FieldScreen):
         table = self.query_one(DataTable)
         table.add_columns("session", "resumes at", "frames", "targets")
         capture = host(self).config.capture
-        folders = sorted(p for p in capture.iterdir() if is_session(p)) if capture.is_dir() else []
-        for folder in folders:  # named by folder, as on the card (copies share a name)
-            name = Text(folder.name)  # as it is, never read as markup
+        for folder in _sessions_in(capture):  # named by folder, as on the card
+            name = Text(visible(folder.name, lines=False))  # as it is, never obeyed
             try:
                 session = load_session(folder)
             except RigkitError:  # opening it shows why
@@ -84,3 +85,19 @@ class StartScreen(FieldScreen):
             self.query_one("#message", Static).update(f"[b $error]{escape(str(exc))}[/]")
             return
         self.post_message(OpenSession(session))
+
+
+def _sessions_in(capture: Path) -> list[Path]:
+    """The session folders in ``capture``, by name; an entry that cannot be looked at (a
+    link to an unreadable tree) is left out, and a folder that cannot be listed lists
+    none (opening a session by name says why)."""
+    try:
+        entries = sorted(capture.iterdir()) if capture.is_dir() else []
+    except OSError:
+        return []
+    found = []
+    for entry in entries:
+        with contextlib.suppress(OSError):
+            if is_session(entry):
+                found.append(entry)
+    return found

@@ -303,7 +303,7 @@ class TargetsScreen(StepScreen):
         try:
             value = parse_typed_range(text, self.session.rig())
         except RigkitError as exc:
-            self.notify(str(exc), severity="error")
+            self.notify(escape(str(exc)), severity="error")
             return
         target = self._current()
         if target is None:
@@ -312,7 +312,7 @@ class TargetsScreen(StepScreen):
         doubt = reading_doubt(value, others, self.implied_m, self.session.rig().nominal_range_m)
         if doubt and self.confirm != f"m {target.name} {value:g}":
             self.confirm = f"m {target.name} {value:g}"
-            self.notify(f"{doubt}: a typo? press m and type it again to keep it",
+            self.notify(f"{escape(doubt)}: a typo? press m and type it again to keep it",
                         severity="warning", timeout=10)
             return
         self.confirm = ""
