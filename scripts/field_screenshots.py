@@ -27,15 +27,17 @@ async def until(pilot, condition: Callable[[], bool], timeout: float = 60.0) -> 
     deadline = time.monotonic() + timeout
     while not condition():
         if time.monotonic() > deadline:
-            raise TimeoutError("the demo did not get there")
+            shown = " | ".join(str(w.render()) for w in pilot.app.screen.query("Static"))
+            raise TimeoutError(f"the demo did not get there; the screen shows: {shown}")
         await pilot.pause(0.1)
 
 
-def checked(app: FieldApp, position: str) -> bool:
+def checked(app: FieldApp, position: str, frames: int = 1) -> bool:
+    """Whether ``position``'s screen shows the checks of its ``frames``-th frame."""
     screen = app.screen
+    of = f" of {frames}" if frames > 1 else ""
     return (isinstance(screen, PositionScreen) and screen.position == position
-            and "redo" not in str(screen.query_one("#checks").render())
-            and "✔" in str(screen.query_one("#checks").render()))
+            and f"({position} frame {frames}{of})" in str(screen.query_one("#status").render()))
 
 
 async def shoot(pilot, app: FieldApp, name: str) -> None:
@@ -45,7 +47,7 @@ async def shoot(pilot, app: FieldApp, name: str) -> None:
 
 async def flow(root: Path) -> None:
     demo = prepare_demo(root, shot_s=0.2)
-    create_session(demo.session, demo.rig)
+    demo.prepare()  # the session, and where its tripod stood
     app = FieldApp(FieldConfig(capture=demo.capture, session=demo.session, demo=demo,
                                graphics=False))
     async with app.run_test(size=(80, 24)) as pilot:
@@ -53,12 +55,13 @@ async def flow(root: Path) -> None:
         await shoot(pilot, app, "rig.svg")
         for position in ("left", "right", "back"):
             await pilot.press("n")
-            await until(pilot, lambda p=position: checked(app, p))
+            await until(pilot, lambda p=position: checked(app, p, demo.burst))
             await shoot(pilot, app, f"{position}.svg")
         await pilot.press("n")
         await until(pilot, lambda: app.screen.query(PixelView)
                     and app.screen.query_one(PixelView).cursor is not None)
-        for moves in (["right", "right", "down"], ["left"] * 7 + ["up"] * 4):
+        for moves in (["shift+left", "left", "left", "left", "left", "shift+up"],  # spread out:
+                      ["shift+right"] * 2 + ["right"] * 8 + ["shift+down"] * 2):  # on the map
             await pilot.press(*moves, "enter")
             count = len(app.session.targets)
             await until(pilot, lambda c=count: len(app.session.targets[c - 1].readings) >= 3)
@@ -88,7 +91,7 @@ async def same_frame_twice(root: Path) -> None:
                     and app.screen.position == "right")
         again = cv2.imread(str(demo.scene / "left.png"), cv2.IMREAD_UNCHANGED)
         cv2.imwrite(str(demo.card / "DSCN0002.PNG"), cv2.add(again, 1))
-        await until(pilot, lambda: "redo" in str(app.screen.query_one("#checks").render()))
+        await until(pilot, lambda: checked(app, "right"))
         await shoot(pilot, app, "same-frame.svg")
         await pilot.press("q")
 

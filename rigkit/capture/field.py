@@ -91,6 +91,19 @@ def frames_at(session: Session, position: str) -> tuple[Frame, ...]:
     return session.bursts.get(position, ())
 
 
+class Misfit(str):
+    """Why a frame is none of a burst (:func:`burst_misfit`), one line; ``elsewhere``:
+    it shows the scene from another position (else it matches nothing of it: another
+    scene, a blank or blurred frame), which decides what it may be offered for."""
+
+    elsewhere: bool
+
+    def __new__(cls, reason: str, elsewhere: bool) -> Misfit:
+        misfit = super().__new__(cls, reason)
+        misfit.elsewhere = elsewhere
+        return misfit
+
+
 @dataclass(frozen=True)
 class Ingested:
     """What :func:`ingest` did: ``session`` as saved with the frame (as it was where the
@@ -98,7 +111,7 @@ class Ingested:
     was added)."""
 
     session: Session
-    held: str | None = None
+    held: Misfit | None = None
 
 
 def ingest(session: Session, position: str, path: Path, *, replace_existing: bool = False,
@@ -120,7 +133,8 @@ def ingest(session: Session, position: str, path: Path, *, replace_existing: boo
         return Ingested(file_frame(staged))
 
 
-def burst_misfit(session: Session, position: str, name: str, new: CheckFrame) -> str | None:
+def burst_misfit(session: Session, position: str, name: str, new: CheckFrame
+                 ) -> Misfit | None:
     """Why the frame called ``name`` (``new``: its check image) does not belong to
     ``position``'s burst, or None: the frames of a burst show one view, shifted a little
     by the tripod's sway, while a frame from another position shows the scene with
@@ -136,15 +150,16 @@ def burst_misfit(session: Session, position: str, name: str, new: CheckFrame) ->
     try:  # a frame that cannot be matched with the burst's is none of it
         view = map_views(first.image, new.image, first.reduction, session.rig().focal_px,
                          reference(session, frames[0]), axis="z" if position == "back" else "x")
-    except RigkitError as exc:
-        return (f"{name} does not match the {position} burst ({exc}): it looks like "
-                "another view")
+    except RigkitError:
+        return Misfit(f"{name} does not match the {position} burst (too little in common "
+                      "with its first frame): another scene, or a blank or blurred frame?",
+                      elsewhere=False)
     moved = view.parallax is not None and view.parallax.moved
     if not moved and abs(view.scale - 1.0) <= MAX_BURST_SCALE_CHANGE:
         return None
     parallax = "" if view.parallax is None else f"parallax {view.parallax.spread_px:.1f} px, "
-    return (f"{name} does not match the {position} burst ({parallax}scale "
-            f"{view.scale:.4f}): it looks taken from another position")
+    return Misfit(f"{name} does not match the {position} burst ({parallax}scale "
+                  f"{view.scale:.4f}): it looks taken from another position", elsewhere=True)
 
 
 def add_position_frame(session: Session, position: str, path: Path,
@@ -294,21 +309,28 @@ def back_checks(view: ViewMap, profile: RigProfile) -> list[Finding]:
     """Magnification of the back view (< 1) and the range it implies."""
     c_lb = profile.baseline_lb.value_m
     checks = [_roll_check(view, "back")]
+    if abs(view.scale - 1.0) <= MAX_BURST_SCALE_CHANGE:  # the right view, or the left again
+        checks.append(Finding(
+            "magnification", f"back view {view.scale:.4f}×, the left view's size: taken beside "
+            "the left position, not behind it (the right frame again?)",
+            redo=f"take the back frame from {metres(c_lb)} straight behind the LEFT position",
+        ))
+        return checks
     if view.scale >= 1.0 or 1.0 - view.scale <= NO_MAGNIFICATION_SIGMAS * view.scale_sigma:
         checks.append(Finding(
             "magnification", f"back view {view.scale:.4f}×: not smaller than the left view"
             + ("" if view.scale >= 1.0 else
                f" by more than its noise (±{view.scale_sigma:.4f})"),
-            redo=f"take the back frame {c_lb:g} m behind the left position, same zoom",
+            redo=f"take the back frame {metres(c_lb)} behind the left position, same zoom",
         ))
         return checks
     z = implied_range_m(view.scale, c_lb)
-    text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {c_lb:.3f} m"
+    text = f"back view {view.scale:.4f}× → ~{_round_range(z)} m at C_lb = {metres(c_lb)}"
     nominal = profile.nominal_range_m
     if nominal is not None and not nominal / RANGE_FACTOR <= z <= nominal * RANGE_FACTOR:
         checks.append(Finding(
             "magnification", f"{text}, far from the planned {nominal:g} m",
-            redo=f"check that the back position is {c_lb:g} m behind the left one and the "
+            redo=f"check that the back position is {metres(c_lb)} behind the left one and the "
             "zoom is unchanged, then take the back frame again",
         ))
     else:
@@ -323,6 +345,12 @@ def _roll_check(view: ViewMap, position: str) -> Finding:
         "rotation", f"{position} view rolled {view.roll_deg:+.1f} deg against the left one",
         redo=f"level the camera as for the left frame and take the {position} frame again",
     )
+
+
+def metres(length_m: float) -> str:
+    """A taped length as the profile gives it, to the millimetre without trailing zeros:
+    "2.03 m", "2 m", "1.995 m" (never 2.03 shown as "2.0")."""
+    return f"{length_m:.3f}".rstrip("0").rstrip(".") + " m"
 
 
 def _round_range(z: float) -> str:
@@ -433,9 +461,12 @@ def onsite_checks(session: Session, position: str) -> list[Finding]:
                  for p in mapped}
         try:
             view = views[position].result()
-        except RigkitError as exc:
-            return [*checks, Finding("match", str(exc), redo=f"aim at the left frame's scene "
-                                     f"and take the {position} frame")]
+        except RigkitError:
+            return [*checks, Finding("match", f"the {position} frame does not match the left "
+                                     "one (too little in common to align them): another "
+                                     "scene, or a blank or blurred frame?",
+                                     redo=f"aim at the left frame's scene and take the "
+                                     f"{position} frame")]
         if position == "right":
             return [*checks, *right_checks(view, session.rig())]
         back = back_checks(view, session.rig())
@@ -463,3 +494,21 @@ def _roles_check(right: ViewMap, back: ViewMap, baseline_lb_m: float) -> list[Fi
 
 def all_ok(checks: Sequence[Finding]) -> bool:
     return all(check.ok for check in checks)
+
+
+NEXT_FIRST = ("roles", "match", "magnification", "scale", "parallax", "rotation", "exposure",
+              "exif")
+"""Failed checks by what to redo first: a frame taken at the wrong position or of
+another scene before its settings, whose fix would be lost with the frame."""
+
+
+def next_move(checks: Sequence[Finding]) -> str | None:
+    """The one thing to do next after ``checks`` (a frame's on-site checks): the redo
+    of the failure that comes first in :data:`NEXT_FIRST`, None where none failed. The
+    position screen shows it above the checks; ``n`` past a failure names it."""
+    failed = [c for c in checks if not c.ok]
+    if not failed:
+        return None
+    order = {code: i for i, code in enumerate(NEXT_FIRST)}
+    first = min(failed, key=lambda c: order.get(c.code, len(order)))
+    return first.redo or first.message

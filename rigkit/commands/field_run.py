@@ -15,7 +15,6 @@ from rigkit.errors import InputError
 
 def run(args: argparse.Namespace) -> int:
     try:
-        from rigkit.synth.demo import prepare_demo
         from rigkit.tui.app import run_field
         from rigkit.tui.config import FieldConfig
     except ImportError as exc:
@@ -28,11 +27,10 @@ def run(args: argparse.Namespace) -> int:
     from rigkit.rangefinder.protocols import get_protocol
 
     get_protocol(args.protocol)  # an unknown one is refused now, not on the targets step
-    if args.demo:
-        from rigkit.capture import create_session
+    if args.demo:  # rendered once the app shows its first screen
+        from rigkit.synth.demo import Demo
 
-        demo = prepare_demo(Path(tempfile.mkdtemp(prefix="rigkit-demo-")))
-        create_session(demo.session, demo.rig)
+        demo = Demo(Path(tempfile.mkdtemp(prefix="rigkit-demo-")))
         config = FieldConfig(capture=demo.capture, session=demo.session, rig=demo.rig,
                              port=args.port, demo=demo)
     else:
@@ -40,9 +38,6 @@ def run(args: argparse.Namespace) -> int:
         capture = args.session.parent if args.session is not None else args.capture
         config = FieldConfig(capture=capture, session=args.session, rig=args.rig,
                              watch=args.watch, port=args.port, protocol=args.protocol)
-    from rigkit.core.lazy import preload
-
-    preload("scipy.optimize")  # the checks' fits: imported while the screen opens
     code = run_field(config)
     if args.demo:
         print(f"the demo session is kept in {config.session}")

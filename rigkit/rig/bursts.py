@@ -105,15 +105,21 @@ def burst_advice(profile: RigProfile, shimmer: Shimmer, where: str, range_m: flo
     and the burst it calls for at ``range_m`` with the rig of ``profile`` (its focal
     length, C_lr and image size): (the line, :func:`frames_for_offset`'s answer). The
     one computation of the burst to take, on site (at the planned range) and after
-    processing (at the measured median depth)."""
-    text = f"heat shimmer {shimmer.rms_px:.2f} px RMS ({where})"
-    corr = shimmer.corr_px if math.isfinite(shimmer.corr_px) else None
+    processing (at the measured median depth). The burst comes from the figures as the
+    line shows them (the RMS to 0.01 px, the correlation length to two figures, the
+    range to the metre), so one shown measurement always gets one answer: 0.0849 and
+    0.0751 px, both "0.08 px", once gave 2 frames and then 1."""
+    rms, range_m = round(shimmer.rms_px, 2), float(round(range_m))
+    corr = float(f"{shimmer.corr_px:.2g}") if math.isfinite(shimmer.corr_px) else None
+    patches = "" if corr is None else f" in patches of ~{corr:g} px"
+    text = f"heat shimmer {rms:.2f} px RMS{patches} ({where})"
     disparity = disparity_px(range_m, profile.focal_px, profile.baseline_lr.value_m)
-    need = frames_for_offset(profile.image_size, disparity, shimmer.rms_px, corr)
+    need = frames_for_offset(profile.image_size, disparity, rms, corr)
     bar = f"{100 * OFFSET_WARNING_FRACTION:g} % of depth"
     if need is None:
         return f"{text}; at {range_m:.0f} m no burst keeps the offset within {bar}", None
-    return (f"{text}: take {need} frames per position to keep the offset within {bar} at "
+    frames = "1 frame" if need == 1 else f"{need} frames"
+    return (f"{text}: take {frames} per position to keep the offset within {bar} at "
             f"{range_m:.0f} m (9 times in 10)"), need
 
 

@@ -4,9 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rigkit.synth.demo import Demo
-from rigkit.tui.watch import SETTLE_S
+if TYPE_CHECKING:  # the demo's libraries load after the first screen
+    from rigkit.synth.demo import Demo
+
+SETTLE_S = 0.6
+"""How long a new file's size must stay the same before it counts, seconds (the watcher's
+default, :mod:`rigkit.tui.watch`)."""
 
 
 @dataclass(frozen=True)
@@ -14,9 +19,11 @@ class FieldConfig:
     """``capture``: the folder whose sessions the start screen lists. ``session``: a
     session to resume, or to create with ``rig``. ``watch``: folder frames arrive in.
     ``port``: the rangefinder's pyserial URL (None: readings typed in). ``demo``: the
-    demo's folders, when running it. ``graphics``: let textual-image use the terminal's
-    graphics protocol for previews when it has one (else half blocks). ``settle_s``: how
-    long a new file's size must stay the same before it counts, seconds."""
+    demo's folders, when running it (rendered and its session created when the app
+    starts, :meth:`rigkit.synth.demo.Demo.prepare`). ``graphics``: let textual-image use
+    the terminal's graphics protocol for previews when it has one (else half blocks).
+    ``settle_s``: how long a new file's size must stay the same before it counts,
+    seconds."""
 
     capture: Path
     session: Path | None = None

@@ -27,10 +27,9 @@ from rigkit.capture.actions import stored_name
 from rigkit.capture.model import RAW_DIR
 from rigkit.core.tables import visible
 from rigkit.imagefile.rawio import RAW_SUFFIXES
+from rigkit.tui.config import SETTLE_S
 
 IMAGE_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".jpg", ".jpeg"}) | RAW_SUFFIXES
-SETTLE_S = 0.6
-"""How long a file's size must stay the same before it counts, seconds."""
 CLOCK_ALLOWANCE_S = 3600.0
 """How far a camera's clock (which dates the files on its card) may be behind the
 computer's and its frames still count as taken since a session began, seconds."""
@@ -111,26 +110,33 @@ def arrivals(folder: Path, stop: threading.Event, settle_s: float = SETTLE_S,
         if not folder.is_dir():
             return
         now = time.monotonic()
-        current = {p: _size(entry) for p, entry in frame_files(folder, once).items()
+        current = {p: _stat(entry) for p, entry in frame_files(folder, once).items()
                    if p not in seen}
         pending = {p: v for p, v in pending.items() if current.get(p) is not None}
-        for path, size in current.items():
-            if size is None:  # gone again (a temporary file renamed away)
+        ready = []
+        for path, found in current.items():
+            if found is None:  # gone again (a temporary file renamed away)
                 continue
+            size, written = found
             known = pending.get(path)
             if known is None or known[0] != size or size == 0:
                 pending[path] = (size, now)
             elif now - known[1] >= settle_s:
-                del pending[path]
-                seen.add(path)
-                yield path
+                ready.append((written, path.name, path))
+        for _, _, path in sorted(ready):  # files complete together: in the order written
+            del pending[path]
+            seen.add(path)
+            yield path
 
 
-def _size(entry: os.DirEntry[str]) -> int | None:
+def _stat(entry: os.DirEntry[str]) -> tuple[int, float] | None:
+    """A folder entry's size (bytes) and when it was last written (seconds), without
+    following a link; None where it is gone."""
     try:
-        return entry.stat(follow_symlinks=False).st_size
+        stat = entry.stat(follow_symlinks=False)
     except OSError:
         return None
+    return stat.st_size, stat.st_mtime
 
 
 def unfiled(folder: Path, session: Session) -> list[Path]:

@@ -60,6 +60,7 @@ class PixelView(Widget):
         self._zoom_index = 0
         self._marks: tuple[Mark, ...] = ()
         self._cells: np.ndarray | None = None
+        self._strips: dict[int, Strip] = {}
         if image is not None:
             self.set_image(image)
 
@@ -129,6 +130,7 @@ class PixelView(Widget):
 
     def _refresh_cells(self) -> None:
         self._cells = None if self._image is None else self._sample()
+        self._strips = {}  # rows drawn since, kept until the next change
         self.refresh()
 
     def _sample(self) -> np.ndarray:
@@ -177,9 +179,11 @@ class PixelView(Widget):
         width = self.size.width
         if cells is None or 2 * y + 1 >= cells.shape[0]:
             return Strip.blank(width)
-        top, bottom = cells[2 * y], cells[2 * y + 1]
-        segments = [
-            Segment("▀", Style(color=Color.from_rgb(*t), bgcolor=Color.from_rgb(*b)))
-            for t, b in zip(top.tolist(), bottom.tolist(), strict=True)
-        ]
-        return Strip(segments, width)
+        if y not in self._strips:  # drawn once per change, not at every refresh
+            top, bottom = cells[2 * y], cells[2 * y + 1]
+            segments = [
+                Segment("▀", Style(color=Color.from_rgb(*t), bgcolor=Color.from_rgb(*b)))
+                for t, b in zip(top.tolist(), bottom.tolist(), strict=True)
+            ]
+            self._strips[y] = Strip(segments, width)
+        return self._strips[y]

@@ -20,6 +20,7 @@ SCRIPTS = sorted(p.stem for p in (ROOT / "benchmarks").glob("*.py")
 TINY = {
     "georef_budget": ["--trials", "5"],
     "bench_cli": ["--runs", "1"],
+    "bench_field_start": ["--runs", "1", "--no-demo"],
     "bench_hostile": ["--files", "20"],
     "bench_export": ["--step", "64", "--format", "ply", "--work", "{tmp}"],
     "eval_synthetic": ["--seeds", "1", "--width", "384", "--height", "288", "--work", "{tmp}"],

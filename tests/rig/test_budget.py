@@ -173,7 +173,8 @@ def test_burst_warning_only_for_a_burst_shorter_than_the_shimmer_calls_for() -> 
     # At 300 m: 5 frames per position (above).
     assert burst_warning(rig, shimmer, "left frames 1 and 2", 300.0, 5) is None
     text = burst_warning(rig, shimmer, "left frames 1 and 2", 300.0, 3)
-    assert text == ("heat shimmer 0.30 px RMS (left frames 1 and 2): take 5 frames per "
+    assert text == ("heat shimmer 0.30 px RMS in patches of ~46 px (left frames 1 and 2): "
+                    "take 5 frames per "
                     "position to keep the offset within 0.3 % of depth at 300 m (9 times in "
                     "10); this capture has 3")
     far = burst_warning(rig, shimmer, "left frames 1 and 2", 500.0, 64)

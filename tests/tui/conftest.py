@@ -31,7 +31,7 @@ def demo(demo_scene: Demo, tmp_path: Path) -> Demo:
     session (as `rigkit field --demo` starts)."""
     shutil.copytree(demo_scene.scene, tmp_path / "scene")
     shutil.copy(demo_scene.rig, tmp_path / "rig.yaml")
-    copy = Demo(tmp_path, demo_scene.seed, SHOT_S)
+    copy = Demo(tmp_path, demo_scene.seed, SHOT_S, demo_scene.size, demo_scene.burst)
     copy.card.mkdir()
     copy.capture.mkdir()
     create_session(copy.session, copy.rig)
@@ -58,6 +58,15 @@ async def wait_for(pilot, condition: Callable[[], bool], what: str, timeout: flo
         await pilot.pause(0.05)
 
 
+async def opened(pilot, app) -> None:
+    """Wait for the app's first step (or start) screen: its first screen says what it
+    opens while the steps' libraries load, and keys pressed there go nowhere."""
+    from rigkit.tui.app import OpeningScreen
+
+    await wait_for(pilot, lambda: not isinstance(app.screen, OpeningScreen)
+                   and app.screen.is_mounted, "the first step")
+
+
 def shown(app) -> str:
     """What the current screen's text widgets show, one line (for a failure message)."""
     from textual.widgets import Static
@@ -69,6 +78,13 @@ def shown(app) -> str:
 def text(app, selector: str) -> str:
     """The plain text a Static on the current screen shows."""
     return str(app.screen.query_one(selector).render())
+
+
+def side(app) -> str:
+    """What a position's side panel says of its frames: the question held, the newest
+    frame's state and its checks."""
+    parts = ("#question", "#status", "#checks")
+    return "\n".join(str(w.render()) for s in parts for w in app.screen.query(s))
 
 
 def write_frame(path: Path, image_path: Path, iso: int | None = None) -> Path:

@@ -22,7 +22,7 @@ from rigkit.tui import watch
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen
-from tests.tui.conftest import SETTLE_S, synchronous, text, wait_for, write_frame
+from tests.tui.conftest import SETTLE_S, opened, synchronous, text, wait_for, write_frame
 
 SIZE = (80, 24)
 HOSTILE = '[a="b]x\x1b]0;owned\x07\x1b[2J.png'
@@ -83,13 +83,14 @@ async def test_a_card_file_named_with_markup_and_escapes_is_added_and_shown_as_i
     app = FieldApp(FieldConfig(capture=demo.capture, session=session, watch=demo.card,
                                graphics=False, settle_s=SETTLE_S))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the left screen")
         (demo.card / "outside").symlink_to(demo.scene, target_is_directory=True)
         (demo.card / os.fsdecode(b"DSC\xff.PNG")).write_bytes(b"not UTF-8")
         write_frame(demo.card / HOSTILE, demo.scene / "left.png", iso=100)
         await wait_for(pilot, lambda: "✔" in text(app, "#checks"), "the frame's checks")
-        shown = text(app, "#checks")
+        shown = text(app, "#status")
         assert '[a="b]x_]0;owned__[2J.png' in shown and "\x1b" not in shown
         await wait_for(pilot, lambda: "not UTF-8" in _said(app), "the undecodable name said")
         assert "a link; rigkit follows no link" in _said(app) and "\x1b" not in _said(app)

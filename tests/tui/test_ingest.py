@@ -17,7 +17,7 @@ from rigkit.capture.field import frames_at
 from rigkit.core import files
 from rigkit.imagefile import decode
 from rigkit.synth.demo import Demo
-from tests.tui.conftest import synchronous, text, wait_for, write_frame
+from tests.tui.conftest import opened, synchronous, text, wait_for, write_frame
 from tests.tui.test_flow import SIZE, take_the_left_frame, watching_app
 
 
@@ -55,6 +55,7 @@ async def test_a_burst_frame_arriving_is_decoded_once_for_all_its_checks(
     second = tmp_path / "second.png"  # another exposure of the same view
     cv2.imwrite(str(second), np.clip(left.astype(int) + noise, 0, 255).astype(left.dtype))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await take_the_left_frame(pilot, app, demo)
         decoded, hashed = _count(monkeypatch)
         write_frame(demo.card / "DSCN0002.PNG", second)

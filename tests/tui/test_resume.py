@@ -17,7 +17,7 @@ from rigkit.synth.demo import Demo
 from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, ProcessScreen
-from tests.tui.conftest import SETTLE_S, synchronous, text, wait_for, write_frame
+from tests.tui.conftest import SETTLE_S, opened, synchronous, text, wait_for, write_frame
 from tests.tui.test_flow import SIZE, take_position
 
 READING = LaserReading(slope_distance_m=200.0, time_utc="2026-11-26T10:00:00Z",
@@ -49,6 +49,7 @@ async def test_quit_while_retaking_the_right_burst_reopens_at_right(demo: Demo) 
     set_field_step(session.path, "right")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         assert "parallax" in await take_position(pilot, app, "right")
         await pilot.press("n")
         await wait_for(pilot, lambda: app.screen.position == "back", "the back screen")
@@ -63,6 +64,7 @@ async def test_reopened_at_processing_it_waits_to_be_asked(demo: Demo) -> None:
     set_field_step(session.path, "process")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen), "processing")
         await pilot.pause(0.3)
         assert "not processed yet; r: process" in text(app, "#stage")
@@ -79,6 +81,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
     process_session(session.path, new_run_id())
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
         assert "targets within" in text(app, "#verdict")
     late = Target(name="T2", pixel=(100.0, 100.0), window_px=9, readings=(READING,))
@@ -86,6 +89,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
                          targets=(*load_session(session.path).targets, late)))
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "before the targets changed" in text(app, "#stage"),
                        "why the run is not shown")
         assert "process again" in text(app, "#stage") and text(app, "#verdict").strip() == ""
@@ -94,6 +98,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
     (session.path / RESULTS_DIR / "comparisons.csv").write_text("garbage,,,\n")
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:  # a damaged results/ is said, no crash
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "comparisons.csv is unreadable" in text(app, "#stage"),
                        "the damaged results said")
         assert app.is_running and text(app, "#verdict").strip() == ""
@@ -102,6 +107,7 @@ async def test_reopened_it_shows_no_run_that_no_longer_shows_the_session(demo: D
                                                  '"offset_depth_error_fraction": 1e200, "_": '))
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:  # before: the TUI ended on opening
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "offset_depth_error_fraction" in text(app, "#stage"),
                        "the refused record said")
         assert "1e+200" in text(app, "#stage") and app.is_running
@@ -120,13 +126,18 @@ async def test_a_verdict_longer_than_its_box_scrolls_rather_than_hides(demo: Dem
     process_session(session.path, new_run_id())
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
         assert text(app, "#verdict").count("is far from the others") == 4
         box = app.screen.query_one("#verdict-box")
         assert box.max_scroll_y > 0  # the rest is a scroll away, with a scrollbar
-        box.scroll_end(animate=False)
-        await pilot.pause(0.1)
-        assert box.scroll_y == box.max_scroll_y
+
+
+        def at_the_end() -> bool:  # the layout may settle after the first frame drawn
+            box.scroll_end(animate=False)
+            return box.max_scroll_y > 0 and box.scroll_y == box.max_scroll_y
+
+        await wait_for(pilot, at_the_end, "the verdict's last line", 5)
 
 
 def test_resume_step_never_opens_a_step_whose_frames_are_missing(demo: Demo) -> None:
@@ -146,10 +157,11 @@ async def test_frames_left_on_the_card_are_offered_again(demo: Demo) -> None:
     write_frame(demo.card / "DSCN0001.PNG", demo.scene / "left.png")  # while closed
     app = app_on(demo, session.path, watch=demo.card)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await pilot.press("n")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
                        and "DSCN0001.PNG" in text(app, "#card"), "the card's frame offered")
-        assert "1 on the card, not in the session" in text(app, "#card")
+        assert "on the card, not in the session: DSCN0001.PNG" in text(app, "#card")
         await pilot.press("c")
         assert "✘" not in await take_position(pilot, app, "left")
         await wait_for(pilot, lambda: not app.screen.query_one("#card").display,

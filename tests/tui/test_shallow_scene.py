@@ -17,7 +17,7 @@ from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from tests.capture.test_field import _tilted, similarity, texture
 from tests.conftest import rig_file
-from tests.tui.conftest import synchronous
+from tests.tui.conftest import opened, synchronous
 from tests.tui.test_flow import SIZE, take_position
 
 
@@ -38,5 +38,6 @@ async def test_a_flat_scene_seen_from_beside_passes_and_an_unmoved_view_does_not
     set_field_step(session.path, "right")
     app = FieldApp(FieldConfig(capture=tmp_path, session=session.path, graphics=False))
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         checks = (await take_position(pilot, app, "right")).replace("\n", " ")
     assert expected in checks, checks

@@ -14,7 +14,7 @@ from rigkit.tui.app import FieldApp
 from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, ProcessScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
-from tests.tui.conftest import synchronous, text, wait_for
+from tests.tui.conftest import opened, synchronous, text, wait_for
 from tests.tui.test_resume import framed
 
 SMALL = (60, 20)
@@ -42,6 +42,7 @@ async def test_every_key_and_number_stays_on_a_60x20_screen(demo: Demo) -> None:
     set_field_step(session.path, "targets")
     app = FieldApp(FieldConfig(capture=demo.capture, session=session.path, graphics=False))
     async with app.run_test(size=SMALL) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
                        and app.screen.query_one(PixelView).cursor is not None, "the targets")
         await keys_on_screen(pilot, app, {"enter", "t", "m", "x", "n", "b", "q"})

@@ -21,7 +21,7 @@ from rigkit.tui.config import FieldConfig
 from rigkit.tui.screens import PositionScreen, TargetsScreen
 from rigkit.tui.widgets import PixelView
 from tests.conftest import make_record, rig_file
-from tests.tui.conftest import text, wait_for
+from tests.tui.conftest import opened, side, text, wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 P1000 = ROOT / "rigs" / "p1000-tripod.yaml"
@@ -65,21 +65,24 @@ def app_for(capture: Path, session: Path | None = None) -> FieldApp:
 def test_start_screen_lists_sessions(snap_compare, capture: Path) -> None:
     session_with_frames(capture / "ridge-0412", ("left", "right"))
     create_session(capture / "ridge-0413", P1000)
-    assert snap_compare(app_for(capture), terminal_size=SIZE)
+    app = app_for(capture)
+    assert snap_compare(app, terminal_size=SIZE, run_before=lambda pilot: opened(pilot, app))
 
 
 def test_rig_screen(snap_compare, capture: Path) -> None:
     create_session(capture / "ridge", P1000)
-    assert snap_compare(app_for(capture, capture / "ridge"), terminal_size=SIZE)
+    app = app_for(capture, capture / "ridge")
+    assert snap_compare(app, terminal_size=SIZE, run_before=lambda pilot: opened(pilot, app))
 
 
 def test_left_position_with_a_checked_frame(snap_compare, capture: Path) -> None:
     app = app_for(capture, session_with_frames(capture / "ridge", ("left",)))
 
     async def back_to_left(pilot) -> None:
+        await opened(pilot, app)
         await pilot.press("b")
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen)
-                       and "✔" in text(app, "#checks"), "the left frame's checks")
+                       and "✔" in side(app), "the left frame's checks")
 
     assert snap_compare(app, terminal_size=SIZE, run_before=back_to_left)
 
@@ -123,7 +126,8 @@ def test_results_of_a_run(snap_compare, capture: Path) -> None:
     async def shown_run(pilot) -> None:
         # The run is read off the screen's thread; the table sizes its columns to the
         # rows once the app is idle: under load the picture was taken in between.
-        await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
+        await wait_for(pilot, lambda: app.screen.query("#stage")
+                       and "latest run shown" in text(app, "#stage"), "the run")
         await pilot.pause()
 
     assert snap_compare(app, terminal_size=SIZE, run_before=shown_run)

@@ -9,7 +9,7 @@ import pytest
 from rigkit.capture.positioning import set_field_step
 from rigkit.synth.demo import Demo
 from rigkit.tui.screens import ProcessScreen
-from tests.tui.conftest import synchronous, text, wait_for
+from tests.tui.conftest import opened, synchronous, text, wait_for
 from tests.tui.test_flow import SIZE
 from tests.tui.test_resume import app_on, framed
 
@@ -27,6 +27,7 @@ async def test_the_verdict_shown_is_the_one_the_run_returned(
     monkeypatch.setattr("rigkit.tui.screens.process.run_verdict", again)
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen)
                        and "r: process" in text(app, "#stage"), "the process step")
         await pilot.press("r")
@@ -36,5 +37,6 @@ async def test_the_verdict_shown_is_the_one_the_run_returned(
     monkeypatch.undo()  # reopened, the record's verdict: the same words
     app = app_on(demo, session.path)
     async with app.run_test(size=SIZE) as pilot:
+        await opened(pilot, app)
         await wait_for(pilot, lambda: "latest run shown" in text(app, "#stage"), "the run")
         assert "targets within" in text(app, "#verdict")

@@ -9,6 +9,7 @@ from textual import work
 from textual.binding import Binding
 from textual.widgets import Static
 
+from rigkit.capture import RESULTS_DIR
 from rigkit.errors import RigkitError
 from rigkit.export import DEFAULT_FORMATS, EXPORT_DIR, Exported, export_path
 from rigkit.tui.screens.common import StepScreen, escape, session_of
@@ -19,7 +20,18 @@ class ExportingScreen(StepScreen):
 
     BINDINGS = [Binding("e", "export", "export")]
 
+    def running(self) -> bool:
+        """Whether processing is under way (what it writes is not there yet)."""
+        return False
+
     def action_export(self) -> None:
+        if self.running():
+            self.notify("processing is under way: e exports its results when it is done",
+                        severity="warning")
+            return
+        if not (session_of(self).path / RESULTS_DIR / "depth.npy").is_file():
+            self.notify("nothing to export yet: press r to process first", severity="warning")
+            return
         self.query_one("#stage", Static).update("exporting ...")
         self._export()
 
@@ -29,9 +41,9 @@ class ExportingScreen(StepScreen):
         try:
             done = export_path(path, path / EXPORT_DIR, DEFAULT_FORMATS)
         except RigkitError as exc:
-            self.app.call_from_thread(self._said, f"[b $error]✘ {escape(str(exc))}[/]")
+            self.deliver(self._said, f"[b $error]✘ {escape(str(exc))}[/]")
             return
-        self.app.call_from_thread(self._said, _exported(done))
+        self.deliver(self._said, _exported(done))
 
     def _said(self, markup: str) -> None:
         self.query_one("#stage", Static).update(markup)

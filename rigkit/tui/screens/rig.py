@@ -6,11 +6,12 @@ from textual.app import ComposeResult
 from textual.containers import VerticalScroll
 from textual.widgets import Footer, Header, Static
 
+from rigkit.capture.field import metres
 from rigkit.reporting.scale import scale_source
 from rigkit.rig.budget import budget_row
 from rigkit.rig.check import check_rig
 from rigkit.rig.optics import fov_deg
-from rigkit.tui.screens.common import StepScreen, escape, session_of
+from rigkit.tui.screens.common import LaserLine, StepScreen, escape, session_of
 
 PLANNED_RANGE_M = 300.0
 """Range the rig summary is given at when the profile names none (as `rigkit rig check`)."""
@@ -24,6 +25,7 @@ class RigScreen(StepScreen):
         yield Header()
         with VerticalScroll():  # many warnings scroll (arrows, page keys) at 80x24
             yield Static(self._summary(), id="rig")
+        yield LaserLine()
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
@@ -40,8 +42,8 @@ class RigScreen(StepScreen):
             f"[b]rig {profile.name}[/]  {width} x {height} px",
             f"focal length   {focal:,.0f} px ± {100 * profile.focal_tolerance:g} %",
             f"field of view  {fov_deg(focal, width):.2f} x {fov_deg(focal, height):.2f} deg",
-            f"baselines      C_lr {profile.baseline_lr.value_m:g} m, "
-            f"C_lb {profile.baseline_lb.value_m:g} m",
+            f"baselines      C_lr {metres(profile.baseline_lr.value_m)}, "
+            f"C_lb {metres(profile.baseline_lb.value_m)}",
             f"scale          {escape(scale_source(profile))}",
             f"{f'at {nominal:g} m':<14} disparity {row.disparity_px:.1f} px, depth error "
             f"± {row.total_m:.1f} m ({100 * row.total_fraction:.1f} %)",

@@ -8,7 +8,6 @@ from pathlib import Path
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Static
 
 from rigkit.capture import is_session, load_session
@@ -17,10 +16,10 @@ from rigkit.capture.field import frames_at, resume_step
 from rigkit.core.tables import visible
 from rigkit.errors import RigkitError
 from rigkit.tui.messages import OpenSession
-from rigkit.tui.screens.common import escape, host
+from rigkit.tui.screens.common import FieldScreen, escape, host
 
 
-class StartScreen(Screen[None]):
+class StartScreen(FieldScreen):
     """Resume a session of the capture folder, or start a new one with a rig profile."""
 
     AUTO_FOCUS = "#sessions"
