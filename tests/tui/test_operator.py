@@ -257,8 +257,19 @@ async def test_r_during_the_run_neither_cancels_it_nor_reports_it_busy(demo: Dem
     """Before: ``r`` answered "busy: being processed by PID <its own>", cancelled the
     first run, and nothing ran."""
     import rigkit.batch.session as batch_session
+    import rigkit.tui.screens.process as process_screen
 
     monkeypatch.setattr(batch_session, "BRIEF_HOLD_S", 0.0)  # a stage longer than its wait
+    run = process_screen.process_session
+
+    def slow(path, run_id, progress):  # each stage 0.2 s longer: r lands inside the run
+        def slowed(stage: str, fraction: float) -> None:
+            time.sleep(0.2)
+            progress(stage, fraction)
+
+        return run(path, run_id, progress=slowed)
+
+    monkeypatch.setattr(process_screen, "process_session", slow)
     session = framed(demo, "r-twice")
     set_field_step(session.path, "targets")
     app = app_on(demo, session.path)
