@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.common import OUT, seed_list
+from rigkit.core.outputs import check_outputs
 from rigkit.core.tables import render_table
 from rigkit.errors import RigkitError
 from rigkit.imagefile.decode import load_grey
@@ -174,6 +175,10 @@ class Run:
     """Per scene run, the offset's standard error as a fraction of depth (the run's own)."""
 
 
+RESULTS_CSV = "eval.csv"
+"""The table each work folder gets: a row a scene."""
+
+
 def run_scenes(params: Callable[[int], SynthParams], seeds: list[int], work: Path,
                args: argparse.Namespace, settings: PipelineSettings) -> Run:
     """Render the seeds that are missing under ``work`` (each with ``params(seed)``),
@@ -224,7 +229,7 @@ def run_scenes(params: Callable[[int], SynthParams], seeds: list[int], work: Pat
     if lens_coverage:
         n = len(lens_coverage)
         print(f"fitted lens corner within 2 sigma: {sum(lens_coverage)} of {n} scenes")
-    write_csv(rows, work / "eval.csv")
+    write_csv(rows, work / RESULTS_CSV)
     return Run(rows, coverage, lens_coverage, bias_sigma)
 
 
@@ -293,13 +298,19 @@ def main(argv: list[str] | None = None) -> int:
                         _seeds(KINDS[name].seeds, args.count), args.work / name)
                  for name in names} if names else
                 {"": (_per_seed(scene_params(args), None), seed_list(args.seeds), args.work)})
+        for _, _, work in sets.values():  # before any scene: a table it may not replace
+            check_outputs(work, [RESULTS_CSV], "--work")
     except RigkitError as exc:
         ap.error(str(exc))
     runs = {}
     for name, (params, seeds, work) in sets.items():
         if name:
             print(f"\n== {name} ({len(seeds)} scenes, {work})")
-        runs[name] = run_scenes(params, seeds, work, args, settings)
+        try:
+            runs[name] = run_scenes(params, seeds, work, args, settings)
+        except RigkitError as exc:  # e.g. the table's folder changed meanwhile
+            print(f"eval_synthetic: {exc}", file=sys.stderr)
+            return 2
     if names:
         print("\n" + summary(runs))
     return 1 if any(m.failed for run in runs.values() for m in run.rows) else 0
