@@ -91,6 +91,10 @@ def run_field(config: FieldConfig) -> int:
     ``sys.__stderr__``; it gets a duplicate of the terminal of its own, so that while a
     decoder's messages are captured from descriptor 2 (:mod:`rigkit.core.chatter`) the
     screen stays."""
+    # textual-image asks the terminal what it can draw when it is imported: here, before
+    # the app reads the terminal's input (imported by a worker once the app runs, the
+    # answer went to the app and the import waited for ever; :mod:`rigkit.tui.previews`).
+    importlib.import_module("textual_image.renderable")
     terminal, saved = private_terminal(), sys.__stderr__
     setattr(sys, "__stderr__", terminal)  # noqa: B010 (the name is read-only to mypy only)
     app = FieldApp(config)

@@ -39,3 +39,23 @@ def test_a_bad_rig_profile_names_the_file_and_creates_nothing(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(rig) in err[0]
     assert not (tmp_path / "new" / "session.yaml").exists()
+
+
+def test_the_terminal_is_asked_what_it_draws_before_the_app_reads_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Before: textual-image was first imported by the app's worker, after the app took
+    the terminal's input; its question's answer went to the app, and in a real terminal
+    ``rigkit field SESSION`` stayed on "loading ..." for ever."""
+    import sys
+
+    from rigkit.capture import create_session
+    from rigkit.tui import app as field_app
+
+    seen: list[bool] = []
+    monkeypatch.delitem(sys.modules, "textual_image.renderable", raising=False)
+    monkeypatch.setattr(field_app.FieldApp, "run",
+                        lambda self: seen.append("textual_image.renderable" in sys.modules))
+    session = create_session(tmp_path / "s", ROOT / "rigs" / "p1000-tripod.yaml")
+    assert main(["field", str(session.path)]) == 0
+    assert seen == [True]
