@@ -17,15 +17,13 @@ rigkit back-projected before it used the run's lens).
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import OUT, ROOT
-from rigkit.batch import process_session
+from benchmarks.common import OUT, processed_example
 from rigkit.capture import load_session
 from rigkit.export.georef import orient_camera
 from rigkit.export.source import DepthMap, open_depth
@@ -33,9 +31,8 @@ from rigkit.geometry import NO_DISTORTION
 from rigkit.pipeline.lens import Lens
 from rigkit.rangefinder.ranging import range_on_ray
 from rigkit.synth import load_scene
-from rigkit.synth.placement import Placement
+from rigkit.synth.placement import Placement, sight_errors
 
-EXAMPLE = ROOT / "capture" / "example"
 PLACED = Placement(46.55123, 7.98456, 1012.0, 47.3, -50.0, 0.0, 49.6)
 """How capture/example was placed (rigkit.synth.placement.place_session)."""
 
@@ -48,20 +45,14 @@ def across_mm(source: DepthMap, truth_enu: np.ndarray, pixels: np.ndarray,
     rotation = orient_camera(session, source).rotation
     points = (source.lens.rays(pixels) * depth[:, None]) @ rotation.T
     line = truth_enu / np.linalg.norm(truth_enu, axis=1, keepdims=True)
-    error = points - truth_enu
-    along = np.sum(error * line, axis=1)
-    return 1000 * np.linalg.norm(error - along[:, None] * line, axis=1)
+    return 1000 * sight_errors(points, truth_enu, line)[1]
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--work", type=Path, default=OUT / "bench-backprojection")
     args = parser.parse_args(argv)
-    session_path = args.work / "example"
-    if not (session_path / "results" / "depth.npy").is_file():
-        shutil.rmtree(session_path, ignore_errors=True)
-        shutil.copytree(EXAMPLE, session_path)
-        process_session(session_path, "20260101T000000Z-0051")
+    session_path = processed_example(args.work)
     source = open_depth(session_path)
     lens = source.lens
     pinhole = replace(source, run=replace(source.run, lens=Lens(

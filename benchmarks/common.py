@@ -4,6 +4,7 @@ they take, and how a script starts a fresh process of itself."""
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -14,6 +15,8 @@ RIGS = ROOT / "rigs"
 """The bundled rig profiles."""
 OUT = ROOT / "out"
 """Where the scripts keep rendered scenes and results by default (not in git)."""
+EXAMPLE = ROOT / "capture" / "example"
+"""The bundled example session (never processed in place)."""
 SHARED_DATA = ROOT.parent / "shared" / "data"
 """Data kept beside the checkout (real camera files, the authors' elephant scene)."""
 
@@ -34,3 +37,17 @@ def run_script(name: str, *args: str) -> str:
     done = subprocess.run([sys.executable, "-m", f"benchmarks.{name}", *args], cwd=ROOT,
                           stdout=subprocess.PIPE, text=True, check=True)
     return done.stdout
+
+
+def processed_example(work: Path) -> Path:
+    """A copy of the bundled example under ``work``, processed once (its run id fixed,
+    so the copy's results are the same each time); kept and reused while its depth map
+    is there."""
+    from rigkit.batch import process_session
+
+    session = work / "example"
+    if not (session / "results" / "depth.npy").is_file():
+        shutil.rmtree(session, ignore_errors=True)
+        shutil.copytree(EXAMPLE, session)
+        process_session(session, "20260101T000000Z-0051")
+    return session

@@ -15,7 +15,6 @@ georeferencing (rigkit.synth.placement.true_map_points).
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -25,13 +24,16 @@ import numpy as np
 import pyproj
 import rasterio
 
-from benchmarks.common import OUT, ROOT
-from rigkit.batch import process_session
+from benchmarks.common import OUT, processed_example
 from rigkit.export import MapRequest, export_path
 from rigkit.synth import load_scene
-from rigkit.synth.placement import Placement, true_map_points
+from rigkit.synth.placement import (
+    Placement,
+    gridded_truth,
+    sight_errors,
+    true_map_points,
+)
 
-EXAMPLE = ROOT / "capture" / "example"
 PLACEMENT = Placement(46.55123, 7.98456, 1012.0, 47.3, -50.0, 0.0, 49.6)
 """How capture/example was placed."""
 
@@ -45,11 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--work", type=Path, default=OUT / "bench-export-truth")
     parser.add_argument("--step", type=int, default=1)
     args = parser.parse_args(argv)
-    session = args.work / "example"
-    if not (session / "results" / "depth.npy").is_file():
-        shutil.rmtree(session, ignore_errors=True)
-        shutil.copytree(EXAMPLE, session)
-        process_session(session, "20260101T000000Z-0051")
+    session = processed_example(args.work)
     step = args.step
     depth = np.load(session / "results" / "depth.npy")[::step, ::step]
     sigma = np.load(session / "results" / "sigma.npy")[::step, ::step]
@@ -70,23 +68,14 @@ def main(argv: list[str] | None = None) -> int:
         points, line = true_map_points(truth, PLACEMENT, pixels, pyproj.CRS.from_epsg(epsg))
         known = np.isfinite(points[:, 2])
         las = laspy.read(out / "example.las")
-        error = (np.column_stack([las.x, las.y, las.z]) - points)[known]
-        along = np.sum(error * line[known], axis=1)
-        across = 1000 * np.linalg.norm(error - along[:, None] * line[known], axis=1)
+        along, across = sight_errors(np.column_stack([las.x, las.y, las.z])[known],
+                                     points[known], line[known])
+        across *= 1000
         with rasterio.open(out / "example.dsm.tif") as dsm:
             elevation = dsm.read(1, masked=True).filled(np.nan)
             band = dsm.read(2, masked=True).filled(np.nan)
             cell, west, north = dsm.transform.a, dsm.transform.c, dsm.transform.f
-        height, width = elevation.shape
-        true = points[known]
-        col = np.floor((true[:, 0] - west) / cell).astype(int)
-        row = np.floor((north - true[:, 1]) / cell).astype(int)
-        inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)
-        index = row[inside] * width + col[inside]
-        count = np.bincount(index, minlength=height * width)
-        total = np.bincount(index, true[inside, 2], minlength=height * width)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            true_cells = (total / count).reshape(height, width)
+        true_cells = gridded_truth(points[known], cell, west, north, elevation.shape)
         both = np.isfinite(true_cells) & np.isfinite(elevation)
         ratio = np.abs(elevation - true_cells)[both] / band[both]
         print(f"EPSG:{epsg:<6} {shares(np.abs(along) / stated[known]):>28}   "

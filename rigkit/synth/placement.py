@@ -126,6 +126,33 @@ def true_map_points(truth: SceneTruth, placement: Placement, pixels: np.ndarray,
     return points, line / np.linalg.norm(line, axis=1, keepdims=True)
 
 
+def sight_errors(points: np.ndarray, truth: np.ndarray, line: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Exported ``points`` against their ``truth`` ((n, 3) each, m, one frame) split by
+    the unit lines of sight ``line`` ((n, 3)): (n,) signed error along the line (where
+    the depth's own error lies) and (n,) distance across it, m."""
+    error = points - truth
+    along = np.sum(error * line, axis=1)
+    return along, np.linalg.norm(error - along[:, None] * line, axis=1)
+
+
+def gridded_truth(points: np.ndarray, cell_m: float, west: float, north: float,
+                  shape: tuple[int, int]) -> np.ndarray:
+    """True ``points`` ((n, 3): easting, northing, height, m; finite) gridded as a
+    north-up DSM of ``shape`` (rows, columns) whose cells of ``cell_m`` start at
+    ``west``, ``north`` are: (rows, columns) the mean height of the points in each cell,
+    NaN where none falls."""
+    height, width = shape
+    col = np.floor((points[:, 0] - west) / cell_m).astype(int)
+    row = np.floor((north - points[:, 1]) / cell_m).astype(int)
+    inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)
+    index = row[inside] * width + col[inside]
+    count = np.bincount(index, minlength=height * width)
+    total = np.bincount(index, points[inside, 2], minlength=height * width)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (total / count).reshape(height, width)
+
+
 def laser_direction(point: np.ndarray, placement: Placement,
                     aperture: tuple[float, float, float] = (0.0, 0.0, 0.0)
                     ) -> tuple[float, float]:

@@ -27,7 +27,7 @@ from rigkit.cli import main
 from rigkit.export.source import open_depth
 from rigkit.rangefinder.ranging import range_on_ray
 from rigkit.synth import load_scene
-from rigkit.synth.placement import Placement
+from rigkit.synth.placement import Placement, gridded_truth, sight_errors
 from tests.export.helpers import read_ply
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "capture" / "example"
@@ -130,9 +130,7 @@ def test_las_points_and_dsm_cells_agree_with_the_truth_within_their_sigma(
     points, line, stated, known = _truth_on_map(example, pyproj.CRS.from_epsg(epsg), step)
     exported = np.column_stack([las.x, las.y, las.z])
     assert len(exported) == len(points)
-    error = (exported - points)[known]
-    along = np.sum(error * line[known], axis=1)
-    across = np.linalg.norm(error - along[:, None] * line[known], axis=1)
+    along, across = sight_errors(exported[known], points[known], line[known])
     within = _within(np.abs(along) / stated[known])
     assert within[0] >= 0.68 and within[1] >= 0.95 and within[2] >= 0.99, within
     assert np.percentile(across, 99) < 0.005, np.percentile(across, [50, 99])
@@ -145,16 +143,7 @@ def test_las_points_and_dsm_cells_agree_with_the_truth_within_their_sigma(
         elevation = dsm.read(1, masked=True).filled(np.nan)
         sigma = dsm.read(2, masked=True).filled(np.nan)
         cell, west, north = dsm.transform.a, dsm.transform.c, dsm.transform.f
-    height, width = elevation.shape
-    true = points[known]
-    col = np.floor((true[:, 0] - west) / cell).astype(int)
-    row = np.floor((north - true[:, 1]) / cell).astype(int)
-    inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)
-    index = row[inside] * width + col[inside]
-    count = np.bincount(index, minlength=height * width)
-    total = np.bincount(index, true[inside, 2], minlength=height * width)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        true_cells = (total / count).reshape(height, width)
+    true_cells = gridded_truth(points[known], cell, west, north, elevation.shape)
     both = np.isfinite(true_cells) & np.isfinite(elevation)
     assert both.sum() > 0.85 * np.isfinite(elevation).sum()  # the rest: cells it missed
     within = _within(np.abs(elevation - true_cells)[both] / sigma[both])
