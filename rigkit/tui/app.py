@@ -334,6 +334,10 @@ class FieldApp(App[None]):
 
     @work(thread=True, group="step")
     def remember_step(self) -> None:
+        """Record the step on show in the session, off the screen's thread."""
+        self._save_step()
+
+    def _save_step(self) -> None:
         """Record the step on show in the session, where ``rigkit field`` resumes it:
         one writer at a time, each writing the newest step (keys pressed quickly never
         leave an older step recorded last)."""
@@ -409,7 +413,11 @@ class FieldApp(App[None]):
                           "target was selected")
 
     def on_unmount(self) -> None:
+        """Stop the workers, and record the step on show before the app goes: a quit
+        pressed just after a step opened never leaves the step before it recorded (the
+        lock waits for a write under way)."""
         self.stop.set()
+        self._save_step()
 
     # -- the laser ----------------------------------------------------------------------------
 
