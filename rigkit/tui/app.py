@@ -29,7 +29,7 @@ from textual.binding import Binding
 from textual.message import Message
 from textual.screen import Screen
 from textual.theme import Theme
-from textual.widgets import Footer, Header, Static
+from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
 from rigkit.capture.model import POSITIONS, Session
@@ -38,6 +38,7 @@ from rigkit.core.chatter import private_terminal
 from rigkit.core.tables import visible
 from rigkit.errors import InputError, RigkitError, environment_message
 from rigkit.tui.config import FieldConfig
+from rigkit.tui.header import FieldHeader
 from rigkit.tui.laser import LaserDesk, Shot
 from rigkit.tui.messages import (
     AimDemo,
@@ -125,7 +126,7 @@ class OpeningScreen(Screen[None]):
     (and the demo's scene renders)."""
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield FieldHeader()
         yield Static("starting ...", id="opening")
         yield Footer(compact=True)
 

@@ -9,12 +9,13 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
-from textual.widgets import Footer, Header, Input, Static
+from textual.widgets import Footer, Input, Static
 from textual.worker import get_current_worker
 
 from rigkit.capture import Session
 from rigkit.capture.actions import remove_frame
 from rigkit.capture.field import frames_at, metres, next_move
+from rigkit.tui.header import FieldHeader
 from rigkit.tui.messages import (
     CardFrames,
     CheckPosition,
@@ -88,7 +89,7 @@ class PositionScreen(StepScreen):
         self.card: list[Path] = []  # frames on the card the session does not hold
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield FieldHeader()
         with Horizontal():
             with VerticalScroll(id="side"):  # what does not fit scrolls (↑↓), never cut off
                 yield Static("", id="title")

@@ -14,7 +14,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.timer import Timer
-from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
+from textual.widgets import DataTable, Footer, ProgressBar, Static
 from textual.worker import get_current_worker
 
 from rigkit.batch import new_run_id, process_session
@@ -26,6 +26,7 @@ from rigkit.errors import RigkitError, environment_message
 from rigkit.imagefile.imagesize import MAX_FRAME_PIXELS
 from rigkit.reporting.previews import colour_map, depth_range, scale_colours
 from rigkit.reporting.verdict import Verdict, run_verdict
+from rigkit.tui.header import FieldHeader
 from rigkit.tui.screens.common import LaserLine, escape, host, session_of
 from rigkit.tui.screens.exporting import ExportingScreen
 from rigkit.tui.widgets import PixelView
@@ -73,7 +74,7 @@ class ProcessScreen(ExportingScreen):
         self._busy = False  # a run started here and its outcome not yet on show
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield FieldHeader()
         with VerticalScroll(id="stage-box"):  # more than fits scrolls, never cut off
             yield Static("", id="stage")
         yield ProgressBar(total=1.0, show_eta=False, id="progress")

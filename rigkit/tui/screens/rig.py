@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from textual.app import ComposeResult
 from textual.containers import VerticalScroll
-from textual.widgets import Footer, Header, Static
+from textual.widgets import Footer, Static
 
 from rigkit.capture.field import metres
 from rigkit.reporting.scale import scale_source
 from rigkit.rig.budget import budget_row
 from rigkit.rig.check import check_rig
 from rigkit.rig.optics import fov_deg
+from rigkit.tui.header import FieldHeader
 from rigkit.tui.screens.common import LaserLine, StepScreen, escape, session_of
 
 PLANNED_RANGE_M = 300.0
@@ -22,7 +23,7 @@ class RigScreen(StepScreen):
     step = "rig"
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield FieldHeader()
         with VerticalScroll():  # many warnings scroll (arrows, page keys) at 80x24
             yield Static(self._summary(), id="rig")
         yield LaserLine()

@@ -8,13 +8,14 @@ from pathlib import Path
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.widgets import DataTable, Footer, Header, Input, Static
+from textual.widgets import DataTable, Footer, Input, Static
 
 from rigkit.capture import is_session, load_session
 from rigkit.capture.actions import create_session_in
 from rigkit.capture.field import frames_at, resume_step
 from rigkit.core.tables import visible
 from rigkit.errors import RigkitError
+from rigkit.tui.header import FieldHeader
 from rigkit.tui.messages import OpenSession
 from rigkit.tui.screens.common import FieldScreen, escape, host
 
@@ -26,7 +27,7 @@ class StartScreen(FieldScreen):
     BINDINGS = [Binding("enter", "open", "open session", show=True)]
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield FieldHeader()
         yield Static("Sessions in " + escape(str(host(self).config.capture)), classes="title")
         yield DataTable(id="sessions", cursor_type="row")
         yield Static("Enter: open the selected session   Tab: start a new one below",

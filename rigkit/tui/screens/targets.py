@@ -10,7 +10,7 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.widgets import Footer, Header, Input, Static
+from textual.widgets import Footer, Input, Static
 
 from rigkit.capture import Session, Target, add_target
 from rigkit.capture.field import frames_at
@@ -20,6 +20,7 @@ from rigkit.capture.targets import remove_reading, remove_target
 from rigkit.capture.views import check_image
 from rigkit.errors import RigkitError
 from rigkit.rangefinder.ranging import parse_typed_range
+from rigkit.tui.header import FieldHeader
 from rigkit.tui.messages import (
     AimDemo,
     LaserChanged,
@@ -73,7 +74,7 @@ class TargetsScreen(StepScreen):
         return host(self).laser.selected
 
     def compose(self) -> ComposeResult:
-        yield Header()
+        yield FieldHeader()
         with Horizontal():
             yield PixelView(cursor=True, id="aim")
             with Vertical(id="side"):
