@@ -13,7 +13,7 @@ class FieldHeader(Header):
     is updated only where its title widget still is. Textual's own update looks the
     title widget up when the change's turn comes; a screen replaced between a title's
     change and that turn (a session opening as the first screen goes) had lost it, and
-    the lookup's error ended the app (CI saw it once in 1665 tests)."""
+    the lookup's error ended the app (the whole suite saw it once)."""
 
     def _on_mount(self, event: events.Mount) -> None:
         event.prevent_default()  # in place of Header's handler, not after it
