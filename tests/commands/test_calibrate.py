@@ -257,3 +257,39 @@ def test_a_calibrated_profile_reads_back_into_a_session(short_session: Path,
     data = yaml.safe_load((session / "session.yaml").read_text())
     assert data["rig"]["values"]["calibration"]["sessions"][0]["name"] == "seed-3"
     assert load_session(session).rig().calibration == load_rig(out).calibration
+
+
+@pytest.mark.slow
+def test_a_check_session_only_checks_and_its_depth_follows_the_fit(
+    short_session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """End to end through the command line: a second capture of the same rig (another
+    scene, the same short tape), given with --check-session, adds no row to the fit and
+    is checked against it; set to the written profile and processed again, its depth
+    map's scale is the one the true C_lb gives it, within the written 2 sigma (the scene
+    has a bias of its own, which no scale removes: measured under the true profile)."""
+    from rigkit.synth import generate_scene
+    from rigkit.synth.session import write_synthetic_session
+    from tests.conftest import SMALL
+
+    true = tmp_path / "true" / "seed-4"
+    write_synthetic_session(generate_scene(SMALL, seed=4), true, n_targets=4, seed=4)
+    other = copy_session(true, tmp_path, edit=_short_c_lb)
+    for session in (true, other):
+        assert main(["process", str(session)]) == 0
+    own, before = _bias_pct(true), _bias_pct(other)
+    out = tmp_path / "calibrated.yaml"
+    code, printed, _ = _calibrate(capsys, str(short_session), "--check-session", str(other),
+                                  "--out", str(out))
+    assert code == 0, printed
+    assert "fitted    5 laser target(s)" in printed  # the check session's 4 are no rows
+    held = re.search(r"held out: (\d)/(\d) targets within 1 % of their laser", printed)
+    assert held is not None and held[2] == "4" and int(held[1]) >= 3, printed
+    calibrated = load_rig(out).baseline_lb
+    sigma_pct = 100 * calibrated.tolerance_m / 2.0
+    assert abs(calibrated.value_m - 2.0) < 2 * calibrated.tolerance_m
+    assert main(["session", "set-rig", str(other), "--rig", str(out)]) == 0
+    assert main(["process", str(other)]) == 0
+    capsys.readouterr()
+    after = _bias_pct(other)
+    assert abs(after - own) < 2 * sigma_pct < abs(before - own), (own, before, after)
