@@ -299,7 +299,7 @@ def main(argv: list[str] | None = None) -> int:
                  for name in names} if names else
                 {"": (_per_seed(scene_params(args), None), seed_list(args.seeds), args.work)})
         for _, _, work in sets.values():  # before any scene: a table it may not replace
-            check_outputs(work, [RESULTS_CSV], "--work")
+            check_outputs(work, [RESULTS_CSV], "--work", "eval")
     except RigkitError as exc:
         ap.error(str(exc))
     runs = {}

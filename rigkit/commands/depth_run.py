@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--out {args.out}: expected a .npy file name")
     check_writable_folder(args.out.parent, f"--out {args.out}")
     names = [path.name for path in _output_paths(args.out, args.preview)]
-    check_outputs(args.out.parent, names, "--out")  # the files written beside it too
+    check_outputs(args.out.parent, names, "--out", "depth")  # the files written beside it too
     rig = rig_profile(args)
     bursts = frame_files({pos: getattr(args, pos) for pos in POSITIONS})
     read = [frame.path for frames in bursts.values() for frame in frames]
@@ -124,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     with Progress("depth", [task], quiet=args.quiet) as progress:
         run = run_depth(bursts, rig, force=args.force, size_from=size_from,
                         progress=lambda stage, f: progress.update(task, f, stage))
-    write_outputs(args.out.parent, _outputs(run, args.out, args.preview), "--out")
+    write_outputs(args.out.parent, _outputs(run, args.out, args.preview), "--out", "depth")
     print(_summary(run, args.out))
     for warning in run.warnings:
         print(f"warning: {visible(warning, lines=False)}", file=sys.stderr)

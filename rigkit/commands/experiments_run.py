@@ -67,12 +67,12 @@ def run_bas_relief(args: argparse.Namespace) -> int:
         raise InputError(f"--noise must not be negative, got {args.noise}")
     setup = BasReliefSetup() if args.noise is None else BasReliefSetup(noise_sigma_px=args.noise)
     names = ("basrelief.csv", "basrelief.json", "basrelief.png")
-    check_outputs(args.out, names, "--out")
+    check_outputs(args.out, names, "--out", "experiments")
     results, summary = run_many(setup, args.runs, np.random.default_rng(args.seed))
     args.out.mkdir(parents=True, exist_ok=True)
     contents = (runs_csv(results), json.dumps(asdict(summary), indent=2) + "\n",
                 figure_png(results))
-    write_outputs(args.out, dict(zip(names, contents, strict=True)), "--out")
+    write_outputs(args.out, dict(zip(names, contents, strict=True)), "--out", "experiments")
     x, y, z = summary.rot_median_deg
     print(f"{summary.runs} runs, noise sigma {setup.noise_sigma_px:.3f} px per axis")
     print(f"|rotation error| median x {x:.4f}, y {y:.4f}, z {z:.4f} deg; "

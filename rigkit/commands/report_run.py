@@ -68,7 +68,7 @@ def _check_out(out: Path, sessions: list[Path], formats: list[str]) -> None:
     (:mod:`rigkit.core.outputs`), said before the work."""
     check_output_folder(out, "--out")
     check_outside(out / "comparisons.csv", sessions, f"--out {out}")
-    check_outputs(out, _names(formats), "--out")
+    check_outputs(out, _names(formats), "--out", "report")
 
 
 def _write_all(out: Path, files: dict[str, str | bytes]) -> None:
@@ -79,6 +79,6 @@ def _write_all(out: Path, files: dict[str, str | bytes]) -> None:
     except OSError as exc:
         raise InputError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
     try:
-        write_outputs(out, files, "--out")
+        write_outputs(out, files, "--out", "report")
     except OSError as exc:
         raise InputError(f"--out {out}: cannot write the report ({exc.strerror})") from None

@@ -35,7 +35,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in (".yaml", ".yml"):
         raise InputError(f"{what}: expected a .yaml file name for the profile")
     check_outside(out, [*args.sessions, *args.check_session], what)
-    check_output_file(out, "--out")  # --force replaces only a profile rigkit wrote
+    check_output_file(out, "--out", "profile")  # --force replaces only a profile rigkit wrote
     check_creatable(out, what)
     if out.exists() and not args.force:
         raise InputError(f"{plain(str(out))}: exists; give --force to overwrite it")
@@ -50,7 +50,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         return 1
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        write_outputs(out.parent, {out.name: dump_rig(written.profile)}, "--out")
+        write_outputs(out.parent, {out.name: dump_rig(written.profile)}, "--out", "profile")
     except OSError as exc:
         raise InputError(f"{what}: cannot write the profile ({exc.strerror})") from None
     print(f"wrote {plain(str(out))} ({plain(written.profile.name)}); use it: rigkit session "

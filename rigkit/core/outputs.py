@@ -21,7 +21,14 @@ An output is never:
   included: remove them once). A log rigkit appends to is its own while its inode
   matches, it is no shorter than recorded and its first bytes are the ones recorded (a
   new file that took a removed log's inode is not). A command's ``--force`` (``rig
-  calibrate``) only lets it replace such a file of its own.
+  calibrate``) only lets it replace such a file of its own;
+* a file rigkit wrote as another product: each ledger entry names what wrote it
+  (:data:`PRODUCTS`: a scene of ``rigkit synth``, the outputs of ``rigkit depth``, a
+  report, an export, a rig profile, ...), and a command replaces only files of its own
+  product. A scene's frames and ground truth are rigkit's, yet they are another
+  command's inputs: ``rigkit depth --out`` onto a scene's ground truth, a depth
+  preview onto another scene's frame, or a ``--raw-log`` onto a frame, were each
+  written over them. Only a log is appended to.
 
 Each refusal is :class:`~rigkit.errors.InputError`: one line naming the option, the
 path and why, before any work. Files are written atomically (:mod:`rigkit.core.files`)
@@ -50,6 +57,18 @@ LEDGER = ".rigkit-outputs"
 LEDGER_LIMIT = 4 << 20
 """The largest ledger read, bytes (some 30,000 files); a larger one counts as none."""
 _FORMAT = "rigkit-outputs/1"
+PRODUCTS = {
+    "synth": "part of a scene that rigkit synth rendered (the other commands' input)",
+    "depth": "an output of rigkit depth",
+    "report": "a report of rigkit report",
+    "export": "an export of rigkit export",
+    "profile": "a rig profile that rigkit rig calibrate wrote",
+    "eval": "an evaluation table of rigkit eval",
+    "experiments": "an output of rigkit experiments",
+    "log": "a log that rigkit appends to",
+}
+"""What may have written a file recorded in a ledger (its ``by``), as the refusals name
+it; a command replaces only its own product's files."""
 
 SESSION_FILE = "session.yaml"
 """A folder holding this is a capture session (:mod:`rigkit.capture.model`)."""
@@ -90,10 +109,11 @@ def check_place(path: Path, what: str) -> None:
                          "write; write it elsewhere")
 
 
-def check_output_file(path: Path, what: str) -> None:
+def check_output_file(path: Path, what: str, product: str | None = None) -> None:
     """InputError naming ``what`` unless a command may write the file ``path`` (a new
-    one, or one rigkit wrote there whose inode, size and time still match its ledger):
-    the module's rule."""
+    one, or one rigkit wrote there whose inode, size and time still match its ledger,
+    as ``product`` (:data:`PRODUCTS`; None: as any product, the command line's first
+    look before the command says what it makes)): the module's rule."""
     path = Path(path)
     check_place(path, what)
     info = _lstat(path, what)
@@ -105,10 +125,15 @@ def check_output_file(path: Path, what: str) -> None:
     if not stat.S_ISREG(info.st_mode):
         raise InputError(f"{what}: {path} is {kind_of(info.st_mode)}, not a file rigkit "
                          "may write; give another name")
-    if not _matches(_ledger(path.parent).get(path.name), info):
+    entry = _ledger(path.parent).get(path.name)
+    log = entry is not None and entry.get("by") == "log" and entry.get("inode") == info.st_ino
+    if not log and not _matches(entry, info):
         raise InputError(f"{what}: {path} exists and was not written by rigkit (or was "
                          f"changed since; see {LEDGER} in its folder): rigkit writes over "
                          "no file of yours; remove it or give another name")
+    if log or (product is not None and entry is not None and entry.get("by") != product):
+        raise InputError(f"{what}: {path} is {_described(entry)}, not this command's: "
+                         "rigkit replaces only its own kind of output; give another name")
 
 
 def check_output_folder(path: Path, what: str) -> None:
@@ -142,11 +167,15 @@ def check_output_log(path: Path, what: str) -> None:
         fd = open_regular(path, os.O_RDONLY)
     except (OSError, InputError):
         fd = None
+    entry = _ledger(path.parent).get(path.name)
     try:
-        ours = _matches(_ledger(path.parent).get(path.name), info, fd)
+        ours = _is_log(entry, info, fd)
     finally:
         if fd is not None:
             os.close(fd)
+    if not ours and entry is not None and _matches(entry, info):
+        raise InputError(f"{what}: {path} is {_described(entry)}, no log: rigkit appends "
+                         "only to a log it started; give a new file")
     if not ours:
         raise InputError(f"{what}: {path} exists and is no log rigkit started (see "
                          f"{LEDGER} in its folder): rigkit appends to no file of yours; "
@@ -170,32 +199,37 @@ CHECKS = {"file": check_output_file, "folder": check_output_folder, "log": check
 """The check for each kind of output option (:mod:`rigkit.commands` declares them)."""
 
 
-def check_outputs(folder: Path, names: Iterable[str], what: str) -> None:
-    """:func:`check_output_file` for each of ``names`` in ``folder``."""
+def check_outputs(folder: Path, names: Iterable[str], what: str,
+                  product: str | None = None) -> None:
+    """:func:`check_output_file` for each of ``names`` in ``folder``, as ``product``."""
     for name in names:
-        check_output_file(Path(folder) / name, what)
+        check_output_file(Path(folder) / name, what, product)
 
 
-def write_outputs(folder: Path, files: Mapping[str, Content], what: str) -> None:
+def write_outputs(folder: Path, files: Mapping[str, Content], what: str,
+                  product: str) -> None:
     """Write ``files`` (name -> content) into ``folder`` together
     (:func:`rigkit.core.files.write_together`) under the module's rule: each name is
-    checked before and again just before its rename, and recorded in the ledger after."""
+    checked before and again just before its rename, and recorded in the ledger after,
+    as ``product``'s (:data:`PRODUCTS`)."""
     folder = Path(folder)
-    check_outputs(folder, files, what)
-    write_together(folder, files, check=lambda path: check_output_file(path, what))
-    record_outputs(folder, files)
+    check_outputs(folder, files, what, product)
+    write_together(folder, files, check=lambda path: check_output_file(path, what, product))
+    record_outputs(folder, files, product)
 
 
 @contextlib.contextmanager
-def staged_outputs(folder: Path, names: Iterable[str], what: str) -> Iterator[Path]:
+def staged_outputs(folder: Path, names: Iterable[str], what: str,
+                   product: str) -> Iterator[Path]:
     """:func:`rigkit.core.files.staged_files` for outputs: ``names`` (the files the
     block writes into the staging folder) checked before, and each again just before its
-    rename; recorded in the ledger when all are in place."""
+    rename; recorded in the ledger as ``product``'s when all are in place."""
     folder, names = Path(folder), list(names)
-    check_outputs(folder, names, what)
-    with staged_files(folder, check=lambda path: check_output_file(path, what)) as staging:
+    check_outputs(folder, names, what, product)
+    with staged_files(folder, check=lambda path: check_output_file(path, what, product)
+                      ) as staging:
         yield staging
-    record_outputs(folder, names)
+    record_outputs(folder, names, product)
 
 
 class OutputLog(io.TextIOWrapper):
@@ -213,7 +247,7 @@ class OutputLog(io.TextIOWrapper):
     def close(self) -> None:
         if not self.closed:
             super().close()
-            record_outputs(self.output_path.parent, [self.output_path.name], log=True)
+            record_outputs(self.output_path.parent, [self.output_path.name], "log")
 
 
 def _open_log(path: Path, what: str) -> int:
@@ -226,7 +260,7 @@ def _open_log(path: Path, what: str) -> int:
             fd = open_regular(path, flags)
         except InputError as exc:
             raise InputError(f"{what}: {exc}") from None
-        if not _matches(_ledger(path.parent).get(path.name), os.fstat(fd), fd):
+        if not _is_log(_ledger(path.parent).get(path.name), os.fstat(fd), fd):
             os.close(fd)
             check_output_log(path, what)  # says why
             raise InputError(f"{what}: {path} changed while it was opened") from None
@@ -235,15 +269,15 @@ def _open_log(path: Path, what: str) -> int:
         raise InputError(f"{what}: {exc}") from None
     except OSError as exc:
         raise InputError(f"{what}: cannot create {path} ({exc.strerror})") from None
-    record_outputs(path.parent, [path.name], log=True)
+    record_outputs(path.parent, [path.name], "log")
     return fd
 
 
-def record_outputs(folder: Path, names: Iterable[str], log: bool = False) -> None:
+def record_outputs(folder: Path, names: Iterable[str], product: str) -> None:
     """Record ``names`` (regular files in ``folder``, just written) in the folder's
-    ledger as rigkit's; ``log``: files it appends to, known by their inode alone. Best
-    effort: a ledger that cannot be written leaves those files unclaimed, which only
-    makes a later write over them refuse."""
+    ledger as ``product``'s (:data:`PRODUCTS`); a ``"log"`` is a file rigkit appends to,
+    known by its inode and first bytes. Best effort: a ledger that cannot be written
+    leaves those files unclaimed, which only makes a later write over them refuse."""
     folder = Path(folder)
     ledger = _ledger(folder)
     for name in names:
@@ -253,8 +287,8 @@ def record_outputs(folder: Path, names: Iterable[str], log: bool = False) -> Non
             continue
         if not stat.S_ISREG(info.st_mode):
             continue
-        ledger[name] = {"inode": info.st_ino, "size": info.st_size}
-        if log:
+        ledger[name] = {"inode": info.st_ino, "size": info.st_size, "by": product}
+        if product == "log":
             ledger[name]["head"] = _head(folder / name, info.st_size)
         else:
             ledger[name]["mtime_ns"] = info.st_mtime_ns
@@ -276,6 +310,18 @@ def _ledger(folder: Path) -> dict[str, dict[str, Any]]:
     if not isinstance(files, dict):
         return {}
     return {name: entry for name, entry in files.items() if isinstance(entry, dict)}
+
+
+def _described(entry: Mapping[str, Any] | None) -> str:
+    """What wrote the file a ledger ``entry`` records, as a refusal names it."""
+    return PRODUCTS.get(str((entry or {}).get("by")), "a file rigkit wrote")
+
+
+def _is_log(entry: Mapping[str, Any] | None, info: os.stat_result, fd: int | None) -> bool:
+    """Whether ``entry`` records a log (:func:`record_outputs`) and the file ``info``
+    and ``fd`` describe is still it (:func:`_matches`): a file rigkit wrote whole is no
+    log to append to."""
+    return entry is not None and entry.get("by") == "log" and _matches(entry, info, fd)
 
 
 def _matches(entry: Mapping[str, Any] | None, info: os.stat_result,

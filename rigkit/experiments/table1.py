@@ -228,7 +228,7 @@ def run_table1(
     on each, write ``table1.csv``, ``table1_scenes.csv`` and ``table1.png`` to ``out``
     and return the table's rows."""
     report = progress or (lambda task, frac, stage: None)
-    check_outputs(out, OUTPUTS, "--out")  # before the work (rigkit.core.outputs)
+    check_outputs(out, OUTPUTS, "--out", "experiments")  # before the work (rigkit.core.outputs)
     per_scene: dict[str, list[Metrics]] = {m: [] for m in methods}
     for seed, folder in zip(seeds, scene_dirs(out, seeds, params), strict=True):
         name = folder.name
@@ -245,5 +245,5 @@ def run_table1(
     rows = [summarise(m, per_scene[m]) for m in methods]
     title = f"{len(seeds)} scenes at {params.width}x{params.height}"
     contents = (table_csv(rows), scenes_csv(per_scene), figure_png(rows, title))
-    write_outputs(out, dict(zip(OUTPUTS, contents, strict=True)), "--out")
+    write_outputs(out, dict(zip(OUTPUTS, contents, strict=True)), "--out", "experiments")
     return rows

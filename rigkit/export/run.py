@@ -158,13 +158,13 @@ def export_depth(source: DepthMap, out: Path, formats: Sequence[str], *, step: i
     names = [_file_name(source, fmt) for fmt in formats] + [source.name + SIDECAR_SUFFIX]
     check_output_folder(out, "--out")  # the rule for outputs (rigkit.core.outputs)
     check_writable_folder(out, f"--out {out}")
-    check_outputs(out, names, "--out")
+    check_outputs(out, names, "--out", "export")
     report("counting points", 0.0)
     count = count_points(source.depth, step)
     if count == 0 and set(formats) - {"tif"}:
         raise InputError(f"{source.name}: the depth map has no estimated pixel to export")
     try:
-        with terminate_as_interrupt(), staged_outputs(out, names, "--out") as staging:
+        with terminate_as_interrupt(), staged_outputs(out, names, "--out", "export") as staging:
             clouds = [fmt for fmt in formats if fmt in CLOUDS]
             footprint = Footprint() if "dsm" in formats else None
             filled = _write_clouds(source, staging, clouds, count, step, georef, footprint,

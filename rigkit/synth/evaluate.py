@@ -356,7 +356,7 @@ def write_csv(rows: Sequence[Metrics], path: Path) -> None:
     writer = csv.DictWriter(buffer, fieldnames=list(table[0]), lineterminator="\n")
     writer.writeheader()
     writer.writerows(table)
-    write_outputs(path.parent, {path.name: buffer.getvalue()}, "--csv")
+    write_outputs(path.parent, {path.name: buffer.getvalue()}, "--csv", "eval")
 
 
 def files_read(scene_dirs: Iterable[Path], depth_dir: Path | None) -> list[Path]:

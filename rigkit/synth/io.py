@@ -96,7 +96,8 @@ def check_out_folder(out_dir: Path, new: bool = False) -> None:
     for folder in (out_dir, truth):  # each file it replaces one rigkit wrote (its ledger)
         if folder.is_dir():
             check_outputs(folder, [p.name for p in folder.iterdir()
-                                   if p.name not in (LEDGER, "ground_truth")], "OUT_DIR")
+                                   if p.name not in (LEDGER, "ground_truth")], "OUT_DIR",
+                          "synth")
 
 
 def _is_rendered(meta: Path) -> bool:
@@ -126,7 +127,7 @@ def write_scene(
         timings = _write_views(scene, out_dir, progress, written)
     finally:
         for folder in (out_dir, truth):
-            record_outputs(folder, [p.name for p in written if p.parent == folder])
+            record_outputs(folder, [p.name for p in written if p.parent == folder], "synth")
     return timings
 
 

@@ -199,3 +199,44 @@ def test_synth_refuses_an_image_it_could_not_render(tmp_path: Path,
                  "--width", "160", "--height", "120", "--quiet"]) == 2
     assert "--targets must be 0 to 1000" in capsys.readouterr().err
     assert not (tmp_path / "s").exists() and not (tmp_path / "t").exists()
+
+
+@pytest.fixture(scope="module")
+def two_scenes(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """Two scenes rendered in place by ``rigkit synth`` (their files in its ledger, as a
+    user's are: a copy would not be)."""
+    root = tmp_path_factory.mktemp("rendered")
+    scenes = root / "s7", root / "s9"
+    for seed, scene in zip((7, 9), scenes, strict=True):
+        assert main(["synth", str(scene), "--seed", str(seed), "--width", "256",
+                     "--height", "192", "--quiet"]) == 0
+    return scenes
+
+
+@pytest.mark.parametrize("case", ["depth onto the truth", "preview onto a frame",
+                                  "raw log onto a frame", "log onto the truth"])
+def test_a_scene_rigkit_rendered_is_an_input_no_other_command_writes_over(
+    two_scenes: tuple[Path, Path], capsys: pytest.CaptureFixture[str], case: str,
+) -> None:
+    """Before: each of these was written over the scene's file, exit 0: the scene's files
+    were in rigkit's ledger, and any command took them for its own. ``rigkit eval`` then
+    scored a depth map against itself (100 %)."""
+    s7, s9 = two_scenes
+    kept = _digests(*[p for s in two_scenes for p in s.rglob("*")
+                      if p.is_file() and p.name != LEDGER])
+    depth = ["depth", str(s7 / "left.png"), str(s7 / "right.png"), str(s7 / "back.png"),
+             "--focal-px", "2442.4", "--baseline-lr", "2", "--baseline-lb", "2", "--quiet"]
+    truth = s7 / "ground_truth" / "depth_left.npy"
+    argv = {
+        "depth onto the truth": [*depth, "--out", str(truth)],
+        "preview onto a frame": [*depth, "--out", str(s9 / "left.npy"), "--preview"],
+        "raw log onto a frame": ["rangefinder", "read", "--port", "sim://trupulse",
+                                 "--timeout", "2", "--raw-log", str(s9 / "right.png")],
+        "log onto the truth": ["rangefinder", "log", "--port", "sim://trupulse",
+                               "--count", "1", "--output", str(truth)],
+    }[case]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert "part of a scene that rigkit synth rendered" in err, err
+    assert _digests(*kept) == kept

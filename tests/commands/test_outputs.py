@@ -295,7 +295,7 @@ def test_what_rigkit_wrote_it_writes_again_and_the_ledger_says_so(
     processed_session: Path, tmp_path: Path
 ) -> None:
     """A second export into the same folder replaces the first; the ledger names each
-    file with its inode, size and time."""
+    file with its inode, size and time, and what wrote it."""
     import json
 
     out = tmp_path / "out"
@@ -307,4 +307,5 @@ def test_what_rigkit_wrote_it_writes_again_and_the_ledger_says_so(
     assert second.st_ino != first.st_ino  # a new file renamed over the old one
     ledger = json.loads((out / LEDGER).read_text())["files"]
     assert ledger[f"{processed_session.name}.tif"] == {
-        "inode": second.st_ino, "size": second.st_size, "mtime_ns": second.st_mtime_ns}
+        "inode": second.st_ino, "size": second.st_size, "mtime_ns": second.st_mtime_ns,
+        "by": "export"}

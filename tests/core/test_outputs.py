@@ -16,6 +16,7 @@ from rigkit.core.outputs import (
     OutputLog,
     check_output_file,
     check_output_folder,
+    check_output_log,
     session_part,
     staged_outputs,
     write_outputs,
@@ -46,11 +47,11 @@ def test_a_sessions_own_parts_are_found_through_links_and_dot_dot(tmp_path: Path
 
 
 def test_a_file_is_rigkits_while_its_inode_size_and_time_match(tmp_path: Path) -> None:
-    write_outputs(tmp_path, {"a.txt": "one\n", "b.txt": "two\n"}, "--out")
+    write_outputs(tmp_path, {"a.txt": "one\n", "b.txt": "two\n"}, "--out", "report")
     ledger = json.loads((tmp_path / LEDGER).read_text())["files"]
     assert set(ledger) == {"a.txt", "b.txt"}
     check_output_file(tmp_path / "a.txt", "--out")  # its own: may be written again
-    write_outputs(tmp_path, {"a.txt": "one again\n"}, "--out")
+    write_outputs(tmp_path, {"a.txt": "one again\n"}, "--out", "report")
     with (tmp_path / "b.txt").open("a") as edited:
         edited.write("edited by hand\n")
     shutil.copy(tmp_path / "a.txt", tmp_path / "copy.txt")
@@ -60,14 +61,42 @@ def test_a_file_is_rigkits_while_its_inode_size_and_time_match(tmp_path: Path) -
             check_output_file(tmp_path / name, "--out")
 
 
+def test_a_command_replaces_only_its_own_products_and_appends_only_to_logs(
+    tmp_path: Path,
+) -> None:
+    """Before: any file in a folder's ledger could be written over by any command, and
+    appended to as a log: a scene's ground truth by ``depth --out``, a scene's frame by
+    a depth preview, a frame by ``--raw-log``."""
+    write_outputs(tmp_path, {"left.png": b"frame", "report.txt": "r\n"}, "--out", "synth")
+    check_output_file(tmp_path / "left.png", "OUT_DIR", "synth")  # a scene again
+    check_output_file(tmp_path / "left.png", "--out")  # the command line's first look
+    for product in ("depth", "report", "export", "profile", "eval", "experiments"):
+        with pytest.raises(InputError, match="left.png is part of a scene that rigkit "
+                                             "synth rendered .* not this command's"):
+            check_output_file(tmp_path / "left.png", "--out", product)
+    for opened in (lambda: OutputLog(tmp_path / "left.png", "--raw-log"),
+                   lambda: check_output_log(tmp_path / "left.png", "--raw-log")):
+        with pytest.raises(InputError, match="left.png is part of a scene .*, no log: rigkit "
+                                             "appends only to a log it started"):
+            opened()
+    assert (tmp_path / "left.png").read_bytes() == b"frame"
+    with OutputLog(tmp_path / "serial.log", "--raw-log") as log:
+        log.write("$PLTIT,HV,300.0,M*00\n")
+    with pytest.raises(InputError, match="serial.log is a log that rigkit appends to"):
+        check_output_file(tmp_path / "serial.log", "--out")
+    with OutputLog(tmp_path / "serial.log", "--raw-log") as log:  # a log goes on growing
+        log.write("$PLTIT,HV,301.0,M*00\n")
+    assert (tmp_path / "serial.log").read_text().count("PLTIT") == 2
+
+
 def test_a_damaged_or_linked_ledger_claims_nothing(tmp_path: Path) -> None:
-    write_outputs(tmp_path, {"a.txt": "one\n"}, "--out")
+    write_outputs(tmp_path, {"a.txt": "one\n"}, "--out", "report")
     (tmp_path / LEDGER).write_text("{not json")
     with pytest.raises(InputError, match="not written by rigkit"):
         check_output_file(tmp_path / "a.txt", "--out")
     other = tmp_path / "other"
     other.mkdir()
-    write_outputs(other, {"a.txt": "one\n"}, "--out")
+    write_outputs(other, {"a.txt": "one\n"}, "--out", "report")
     (tmp_path / LEDGER).unlink()
     (tmp_path / LEDGER).symlink_to(other / LEDGER)  # another folder's ledger, by a link
     with pytest.raises(InputError, match="not written by rigkit"):
@@ -78,7 +107,7 @@ def test_a_damaged_or_linked_ledger_claims_nothing(tmp_path: Path) -> None:
 
 def test_a_file_that_appears_while_outputs_are_written_is_not_replaced(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="late.txt exists and was not written by rigkit"):
-        with staged_outputs(tmp_path, ["early.txt", "late.txt"], "--out") as staging:
+        with staged_outputs(tmp_path, ["early.txt", "late.txt"], "--out", "report") as staging:
             (staging / "early.txt").write_text("rigkit's\n")
             (staging / "late.txt").write_text("rigkit's\n")
             (tmp_path / "late.txt").write_text("someone's\n")  # meanwhile
