@@ -9,6 +9,7 @@ import logging
 import sys
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from typing import NoReturn
 
 from rigkit import __version__
 from rigkit.core.memory import tune_for_images
@@ -32,8 +33,18 @@ COMMANDS: tuple[str, ...] = (
 )
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, whose mistakes are one line, as every other bad input's: the
+    command, what is wrong (names shown, never obeyed: :func:`_shown`) and where its
+    options are listed. argparse's own printed the whole usage first (4-21 lines)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {_shown(message)} (options: {self.prog} "
+                     "--help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="rigkit",
         description="Dense metric depth at 200-500 m from a left, right and back telephoto camera.",
         epilog="Run 'rigkit COMMAND --help' for a command's options and an example.",

@@ -137,22 +137,28 @@ def read_rows(path: Path, torn: list[str] | None = None) -> list[Comparison]:
         if torn is not None:
             torn.append(f"{path}: the last line was cut short and was skipped")
     reader = csv.DictReader(io.StringIO(text))
-    if reader.fieldnames is None:
+    try:
+        fieldnames = reader.fieldnames
+    except csv.Error as exc:
+        raise InputError(f"{path}: not a comparisons log (its first line: {exc})") from None
+    if fieldnames is None:
         return []
-    missing = [c for c in COLUMNS if c not in reader.fieldnames]
+    missing = [c for c in COLUMNS if c not in fieldnames]
     if missing:
         raise InputError(f"{path}: not a comparisons log (missing columns {', '.join(missing)})")
     rows = []
-    for number, record in enumerate(reader, start=2):
-        try:
+    while True:
+        try:  # the reader goes on at the next line after a line it cannot split
+            record = next(reader)
             rows.append(_parse(record))
-        except (TypeError, ValueError, OverflowError) as exc:
+        except StopIteration:
+            return rows
+        except (csv.Error, TypeError, ValueError, OverflowError) as exc:
             if torn is None:
-                raise InputError(f"{path}: line {number} is no comparison rigkit wrote "
-                                 f"({exc}); remove the line or process the session "
+                raise InputError(f"{path}: line {reader.line_num} is no comparison rigkit "
+                                 f"wrote ({exc}); remove the line or process the session "
                                  "again") from None
-            torn.append(f"{path}: line {number} is damaged and was skipped ({exc})")
-    return rows
+            torn.append(f"{path}: line {reader.line_num} is damaged and was skipped ({exc})")
 
 
 def _parse(record: dict[str, str]) -> Comparison:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -47,6 +48,23 @@ def finite(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
     return value
+
+
+def within(low: float, high: float, unit: str, *, low_open: bool = False
+           ) -> Callable[[str], float]:
+    """An argparse type: a finite number in [low, high] (``low_open``: above ``low``), in
+    ``unit``; the limits named where it is not (a budget's 1e300 px overflowed the
+    arithmetic behind it)."""
+
+    def number(text: str) -> float:
+        value = finite(text)
+        if not (value > low if low_open else value >= low) or value > high:
+            above = f"> {low:g}" if low_open else f">= {low:g}"
+            raise argparse.ArgumentTypeError(f"must be {above} and <= {high:g} {unit}, "
+                                             f"got {text}")
+        return value
+
+    return number
 
 
 def count(text: str) -> int:

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from rigkit.capture.comparisons import csv_text
 from rigkit.capture.session import check_outside
 from rigkit.core.outputs import check_output_folder, check_outputs, write_outputs
-from rigkit.core.tables import visible
+from rigkit.core.tables import warn
 from rigkit.errors import InputError
 from rigkit.reporting.plots import FORMATS, plot_error_vs_range, plot_estimate_vs_laser, render
 from rigkit.reporting.scale import calibration_rows, session_scale_note
@@ -34,8 +33,7 @@ def run(args: argparse.Namespace) -> int:
     _check_out(args.out, args.sessions, formats)
     torn: list[str] = []
     rows = collect(args.sessions, all_runs=args.all_runs, torn=torn)
-    for problem in torn:
-        print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
+    warn(torn)
     if not rows:
         raise InputError(f"no comparisons in {', '.join(map(str, args.sessions))} (an empty "
                          "log, or every row damaged): nothing to report; rigkit process a "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count, finite, output_file
+from rigkit.commands import count, finite, output_file, within
 from rigkit.rig.defaults import (
     CRITICAL_W,
     DISPARITY_ERROR_PX,
@@ -15,6 +15,11 @@ from rigkit.rig.defaults import (
 )
 
 DEFAULT_RANGE_M = 300.0
+MIN_RANGE_M = 1.0
+MAX_BUDGET_PX = 1000.0
+"""The largest error, px, a budget takes (a disparity, the shimmer, the offset)."""
+MAX_CORRELATION_PX = 1e6
+"""The longest shimmer correlation a budget takes, px."""
 
 _RIG_EPILOG = """\
 example:
@@ -74,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     check.add_argument(
         "--disparity-error-px",
-        type=_non_negative_float,
+        type=within(0.0, MAX_BUDGET_PX, "px"),
         default=DISPARITY_ERROR_PX,
         metavar="PX",
         help=f"disparity error for the budget (default {DISPARITY_ERROR_PX:g})",
@@ -88,7 +93,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     check.add_argument(
         "--shimmer-px",
-        type=_non_negative_float,
+        type=within(0.0, MAX_BUDGET_PX, "px"),
         metavar="PX",
         help="heat shimmer, px RMS per frame, the offset's error is budgeted for "
         "(default: moderate turbulence over 300 m, 6.8 µrad, in the profile's pixels: "
@@ -96,7 +101,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     check.add_argument(
         "--shimmer-corr-px",
-        type=_positive_float,
+        type=within(0.0, MAX_CORRELATION_PX, "px", low_open=True),
         metavar="PX",
         help="the shimmer's correlation length, px, as `rigkit field` measures it "
         "(default: moderate air's 1.05 mrad in the profile's pixels, 46 px at 6 deg "
@@ -104,7 +109,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     check.add_argument(
         "--offset-error-px",
-        type=_non_negative_float,
+        type=within(0.0, MAX_BUDGET_PX, "px"),
         metavar="PX",
         help="error of the global disparity offset for the budget, instead of the one "
         "--frames, --shimmer-px and --shimmer-corr-px give",
@@ -184,8 +189,4 @@ def _float(text: str) -> float:
     return finite(text)
 
 
-def _range_m(text: str) -> float:
-    value = _positive_float(text)
-    if value > MAX_RANGE_M:
-        raise argparse.ArgumentTypeError(f"must be at most {MAX_RANGE_M:g} m, got {text}")
-    return value
+_range_m = within(MIN_RANGE_M, MAX_RANGE_M, "m")

@@ -19,7 +19,7 @@ from rigkit.capture.readings import reading_from_device
 from rigkit.capture.results import session_record, stale_results
 from rigkit.capture.targets import add_target, remove_reading, remove_target
 from rigkit.capture.tripod import check_direction
-from rigkit.core.tables import visible
+from rigkit.core.tables import visible, warn
 from rigkit.errors import InputError, RigkitError, environment_message
 from rigkit.rangefinder import open_rangefinder
 from rigkit.rangefinder.protocols import default_protocol
@@ -196,8 +196,7 @@ def _last_rows(session: Session) -> list[Comparison]:
         rows = latest_run(read_rows(log, torn)) if log.is_file() else []
     except InputError as exc:  # the session is shown all the same
         torn, rows = [str(exc)], []
-    for problem in torn:
-        print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
+    warn(torn)
     return rows
 
 

@@ -12,23 +12,11 @@ from __future__ import annotations
 import io
 from collections.abc import Iterable, Sequence
 
-from rich import box
-from rich.console import Console
-from rich.table import Table
-
-#: Only horizontal rules (under the header, between sections), in ASCII dashes; the
-#: lines are top, head, head_row, mid, row, foot_row, foot, bottom (see rich.box).
-_RULES = box.Box(
-    "    \n"
-    "    \n"
-    " -- \n"
-    "    \n"
-    " -- \n"
-    " -- \n"
-    "    \n"
-    "    \n",
-    ascii=True,
-)
+_RULES = ("    \n" "    \n" " -- \n" "    \n" " -- \n" " -- \n" "    \n" "    \n")
+"""Only horizontal rules (under the header, between sections), in ASCII dashes; the
+lines are top, head, head_row, mid, row, foot_row, foot, bottom (see rich.box). rich is
+imported by :func:`render_table` alone: a name shown in a one-line error (:func:`visible`)
+needs none of it."""
 
 
 def render_table(
@@ -43,9 +31,13 @@ def render_table(
     name and unit) as text: columns whose index is in ``left`` left-aligned, the others
     right-aligned; each line indented by ``indent`` spaces; ``rule`` draws dashes under
     the header and between sections (``None`` rows)."""
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
     left_set = set(left)
     table = Table(
-        box=_RULES if rule else None,
+        box=box.Box(_RULES, ascii=True) if rule else None,
         show_edge=False,
         pad_edge=False,
         padding=(0, 1 if rule else 2, 0, 0),  # with the box's blank divider: 2 spaces
@@ -84,6 +76,22 @@ def visible(text: str, *, lines: bool = True, markup: bool = False) -> str:
     shown = "".join(c if c.isprintable() or (lines and c in "\n\t") else _written_out(c)
                     for c in text)
     return shown.replace("[", "\\[") if markup else shown
+
+
+WARNINGS_SHOWN = 5
+"""The most warnings of one kind :func:`warn` prints; the rest are counted."""
+
+
+def warn(problems: Sequence[str], limit: int = WARNINGS_SHOWN) -> None:
+    """Print ``problems`` to stderr as warnings, one line each and as many as ``limit``,
+    then how many more there were: a log with 2,000 damaged rows says so in six lines,
+    not 2,000."""
+    import sys
+
+    for problem in problems[:limit]:
+        print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
+    if len(problems) > limit:
+        print(f"warning: ... and {len(problems) - limit} more like these", file=sys.stderr)
 
 
 def _written_out(char: str) -> str:

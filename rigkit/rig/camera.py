@@ -8,6 +8,7 @@ Errors name the file, the dotted key and the value (:class:`rigkit.core.yamlfile
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -102,6 +103,7 @@ def read_camera(value: Any, key: KeyPath) -> CameraSpec:
         focal = focal_px_from_mm(given, sensor[0], resolution[0])
     else:
         focal = focal_px_from_35mm_equivalent(given, sensor, resolution)
+    _check_field_of_view(focal, resolution[0], key.child("focal_length").child(form), given)
     principal = key.optional(keys, "principal_point_px", _principal_point)
     if principal is not None:
         _check_principal_point(principal, resolution, key.child("principal_point_px"))
@@ -192,6 +194,22 @@ def _focal_length(value: Any, key: KeyPath) -> tuple[str, float, float]:
     unit = "pixels" if form == "px" else "mm"
     given = key.child(form).bounded(keys[form], unit, high)
     return form, given, _tolerance_fraction(keys["tolerance_fraction"], key)
+
+
+FOV_DEG = (0.01, 90.0)
+"""The fields of view (degrees across the image's width) rigkit takes a camera to have.
+Its method is for telephoto lenses (3-6 deg at the paper's protocol); outside these a
+focal length is a mistake (one in mm given as px, a digit too many or too few), and the
+pipeline's arithmetic on it overflowed or made an offset of 40 image widths."""
+
+
+def _check_field_of_view(focal_px: float, width_px: int, key: KeyPath, given: float) -> None:
+    fov = math.degrees(2.0 * math.atan(width_px / (2.0 * focal_px)))
+    low, high = FOV_DEG
+    if not low <= fov <= high:
+        raise key.error(f"gives a field of view of {fov:.3g} deg across {width_px} px; "
+                        f"rigkit's cameras see {low:g}-{high:g} deg (a telephoto lens: "
+                        "3-6 deg): check the value and its unit", given)
 
 
 def _tolerance_fraction(value: Any, parent: KeyPath) -> float:

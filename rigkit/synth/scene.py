@@ -52,6 +52,8 @@ BACKDROPS = ("terrain", "void", "ground")
 
 MAX_SIDE_PX = 16384
 """The widest and tallest image synth renders (a 16 MP frame is 4608 px wide)."""
+MAX_SEED = 2**32 - 1
+"""The largest seed a scene is drawn from."""
 
 @dataclass(frozen=True)
 class SynthParams:
@@ -98,30 +100,39 @@ class SynthParams:
 
     def validate(self) -> None:
         """InputError naming the first parameter out of its range."""
+        # Every number bounded on both sides: a value the arithmetic of rendering cannot
+        # hold (noise 1e300 DN, a scene 1e300 m away) is a mistake to name, never a
+        # traceback or a scene whose truth is all NaN.
         checks = {
             "width": 64 <= self.width <= MAX_SIDE_PX,
             "height": 48 <= self.height <= MAX_SIDE_PX,
             "hfov_deg": 0.1 < self.hfov_deg < 60,
-            "distance_m": self.distance_m > 0,
-            "baseline_lr_m": self.baseline_lr_m > 0,
-            "baseline_lb_m": self.baseline_lb_m > 0,
+            "distance_m": 10 <= self.distance_m <= 100_000,
+            "baseline_lr_m": 1e-4 <= self.baseline_lr_m <= 100,
+            "baseline_lb_m": 1e-4 <= self.baseline_lb_m <= 100,
+            "back_side_m": abs(self.back_side_m) <= 100,
+            "back_up_m": abs(self.back_up_m) <= 100,
+            "max_tilt_deg": 0 <= self.max_tilt_deg <= 10,
+            "max_roll_deg": 0 <= self.max_roll_deg <= 45,
+            "max_pp_offset_px": 0 <= self.max_pp_offset_px <= max(self.width, self.height),
             "relief": 0 <= self.relief < 0.5,
-            "noise_dn": self.noise_dn >= 0,
-            "n_boxes": self.n_boxes >= 0,
-            "n_spheres": self.n_spheres >= 0,
+            "noise_dn": 0 <= self.noise_dn <= 64,
+            "gain_jitter": 0 <= self.gain_jitter < 0.5,
+            "n_boxes": 0 <= self.n_boxes <= 500,
+            "n_spheres": 0 <= self.n_spheres <= 500,
             "sky": 0 <= self.sky < 0.8,
-            "haze_m": self.haze_m >= 0,
-            "offset_jitter_dn": self.offset_jitter_dn >= 0,
+            "haze_m": 0 <= self.haze_m <= 1e7,
+            "offset_jitter_dn": 0 <= self.offset_jitter_dn <= 64,
             "vignetting": 0 <= self.vignetting < 1,
             "shimmer_px": 0 <= self.shimmer_px < 20,
-            "shimmer_corr_px": self.shimmer_corr_px > 0,
+            "shimmer_corr_px": 0 < self.shimmer_corr_px <= 1e6,
             "distortion": len(self.distortion) == 5 and all(np.isfinite(self.distortion)),
             "burst": 1 <= self.burst <= 50,
             "shimmer_spectrum": self.shimmer_spectrum in SPECTRA,
-            "shimmer_outer_px": self.shimmer_outer_px > 0,
+            "shimmer_outer_px": 0 < self.shimmer_outer_px <= 1e7,
             "n_movers": 0 <= self.n_movers <= 500,
             "n_shadows": 0 <= self.n_shadows <= 50,
-            "shadow_drift_m": self.shadow_drift_m >= 0,
+            "shadow_drift_m": 0 <= self.shadow_drift_m <= 1000,
             "n_facades": 0 <= self.n_facades <= 50,
             "backdrop": self.backdrop in BACKDROPS,
             "depth_ratio": 1.05 <= self.depth_ratio <= 4.0,
@@ -262,8 +273,13 @@ def _terrain(p: SynthParams, rng: np.random.Generator, half_w: float) -> Terrain
 
 
 def generate_scene(params: SynthParams, seed: int) -> Scene:
-    """Draw a random scene and rig from ``seed`` (the same seed gives the same scene)."""
+    """Draw a random scene and rig from ``seed`` (a whole number 0 to 2^32 - 1; the same
+    seed gives the same scene)."""
     params.validate()
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) \
+            or not 0 <= seed <= MAX_SEED:
+        raise InputError(f"synth seed {seed!r} is out of range: a whole number from 0 to "
+                         f"{MAX_SEED}")
     rng = np.random.default_rng(seed)
     cams, eulers = _cameras(params, rng)
     if params.backdrop == "ground":

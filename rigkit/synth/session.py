@@ -189,7 +189,7 @@ def pick_targets(
                 continue
             if np.ptp(patch) <= FLATNESS * float(np.median(patch)):
                 candidates.append((u, v))
-    if not candidates:
+    if not candidates or count < 1:
         return []
     points = np.array(candidates, float)
     chosen = [int(rng.integers(len(points)))]

@@ -267,3 +267,55 @@ def test_the_bundled_example_meets_its_goal(tmp_path: Path, capsys) -> None:
     capsys.readouterr()
     assert main(["eval", "--goal", str(session)]) == 0
     assert "example: goal met" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["dpeth"], "rigkit: error: argument COMMAND: invalid choice: 'dpeth'"),
+    (["depth", "a", "b", "c", "--focal-px", "nan"],
+     "rigkit depth: error: argument --focal-px: must be a finite number, got nan"),
+    (["rig", "check", "rigs/synthetic.yaml", "--shimmer-px", "1e300"],
+     "argument --shimmer-px: must be >= 0 and <= 1000 px, got 1e300"),
+    (["rig", "check", "rigs/synthetic.yaml", "--offset-error-px", "1e300"],
+     "argument --offset-error-px: must be >= 0 and <= 1000 px, got 1e300"),
+    (["rig", "check", "rigs/synthetic.yaml", "--range", "1e-300"],
+     "argument --range: must be >= 1 and <= 100000 m, got 1e-300"),
+    (["session", "show"], "the following arguments are required: session"),
+])
+def test_a_mistaken_argument_is_one_line(argv, said, capsys) -> None:
+    """Before: argparse printed the command's whole usage (4-21 lines) above the error,
+    and budgets of 1e300 px were tracebacks (OverflowError) in rig check."""
+    with pytest.raises(SystemExit) as caught:
+        main(argv)
+    assert caught.value.code == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and said in err, err
+    assert err.rstrip().endswith("--help)")
+
+
+@pytest.mark.parametrize("flags, said", [
+    (["--seed", "-1"], "synth seed -1 is out of range: a whole number from 0 to 4294967295"),
+    (["--noise", "1e300"], "synth parameter noise_dn=1e+300 is out of range"),
+    (["--distance", "1e300"], "synth parameter distance_m=1e+300 is out of range"),
+    (["--max-pp-offset", "1e9"], "synth parameter max_pp_offset_px=1000000000.0 is out of range"),
+])
+def test_synth_names_a_number_it_cannot_render(flags, said, tmp_path, capsys) -> None:
+    """Before: tracebacks (numpy's SeedSequence, OverflowError in the exposure), or a
+    scene whose ground truth was all NaN, exit 0."""
+    out = tmp_path / "scene"
+    assert main(["synth", str(out), "--width", "128", "--height", "96", *flags]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and said in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("focal, fov", [("1e-300", "180"), ("100", "156"), ("1e7", "0.0055")])
+def test_a_focal_length_no_telephoto_has_is_named(scene_dir, tmp_path, capsys, focal, fov):
+    """Before: --focal-px 1e-300 was an OverflowError traceback, 1e-100 blamed the frames
+    (right and back swapped?), and 1e7 on a 1152-px frame wrote depth with an offset of
+    40 image widths (the scene is 960 px wide)."""
+    frames = [str(scene_dir / f"{view}.png") for view in ("left", "right", "back")]
+    assert main(["depth", *frames, "--focal-px", focal, "--baseline-lr", "2",
+                 "--baseline-lb", "2", "--out", str(tmp_path / "d.npy")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and f"field of view of {fov} deg" in err, err
+    assert not (tmp_path / "d.npy").exists()

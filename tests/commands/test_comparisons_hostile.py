@@ -84,3 +84,27 @@ def test_ranges_beyond_any_rangefinder_fit_no_rig(
     captured = capsys.readouterr()
     assert "is damaged and was skipped" in captured.err and "e+150" not in captured.out
     assert "e+200" not in (report / "report.txt").read_text()
+
+
+def test_a_line_longer_than_csv_splits_and_many_damaged_lines_are_said_briefly(
+    session: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: a field over 128 KiB raised csv's own error out of every reader (a
+    traceback in report, session show and rig calibrate); 2,000 damaged rows printed
+    2,000 warnings."""
+    log = session / LOG_NAME
+    with log.open("a") as handle:
+        handle.write("x" * 200_000 + "\n")
+        handle.writelines(f"damaged,{n}\n" for n in range(2000))
+    assert main(["session", "show", str(session)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 6 and "... and 1996 more like these" in err[-1], err
+    assert "line" in err[0] and "field larger than field limit" in err[0], err[0]
+    assert main(["report", str(session), "--out", str(tmp_path / "report"), "--all-runs"]) == 0
+    assert len(capsys.readouterr().err.strip().splitlines()) == 6
+    for damaged in (log, session / "results" / LOG_NAME):  # a header beyond what csv splits
+        damaged.write_text("y" * 200_000 + "\n")
+    for command in (["rig", "calibrate", str(session), "--out", str(tmp_path / "rig.yaml")],
+                    ["report", str(session), "--out", str(tmp_path / "r2"), "--all-runs"]):
+        assert main(command) == 2
+        assert "not a comparisons log" in _one_line(capsys)

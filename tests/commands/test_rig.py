@@ -69,7 +69,7 @@ def test_cli_reports_the_correlation_length_it_budgeted_for(
     with pytest.raises(SystemExit) as exc:
         main(["rig", "check", str(P1000), "--shimmer-corr-px", "0"])
     assert exc.value.code == 2
-    assert "--shimmer-corr-px: must be > 0, got 0" in capsys.readouterr().err
+    assert "--shimmer-corr-px: must be > 0 and <= 1e+06 px, got 0" in capsys.readouterr().err
 
 
 def test_cli_rejects_no_frames(capsys: pytest.CaptureFixture[str]) -> None:
@@ -96,4 +96,4 @@ def test_cli_rejects_a_negative_range(capsys: pytest.CaptureFixture[str]) -> Non
     with pytest.raises(SystemExit) as caught:
         main(["rig", "check", str(P1000), "--range", "-5"])
     assert caught.value.code == 2
-    assert "must be > 0" in capsys.readouterr().err
+    assert "--range: must be >= 1 and <= 100000 m, got -5" in capsys.readouterr().err
