@@ -239,6 +239,31 @@ def write_npy(path: Path, array: np.ndarray) -> None:
     write_with(path, lambda handle: np.save(handle, array))
 
 
+NPY_MAGIC = b"\x93NUMPY"
+"""How every NumPy array file (.npy) begins."""
+
+
+def read_npy(path: Path) -> np.ndarray:
+    """The array in the .npy file ``path``, mapped rather than read (its header says its
+    size before any of it is read); FileNotFoundError where there is none, InputError
+    naming the file where it is no array file or a damaged one. Any other file made
+    NumPy suggest loading it as a pickle, which rigkit never does."""
+    try:
+        with os.fdopen(open_input(Path(path)), "rb") as handle:
+            head = handle.read(len(NPY_MAGIC))
+    except IsADirectoryError:
+        raise InputError(f"{path}: a folder, not a NumPy array file (.npy)") from None
+    if head != NPY_MAGIC:
+        raise InputError(f"{path}: not a NumPy array file (.npy)")
+    try:
+        array = np.load(path, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: a damaged NumPy array file ({exc})") from None
+    if not isinstance(array, np.ndarray):
+        raise InputError(f"{path}: not a NumPy array file (.npy)")
+    return array
+
+
 def _dump(path: Path, content: Content) -> Callable[[BinaryIO], object]:
     """How to write ``content`` to ``path``: by type, and for arrays by suffix."""
     if isinstance(content, str):

@@ -20,6 +20,7 @@ import numpy as np
 from rigkit.capture.model import Session
 from rigkit.capture.results import RunFiles, RunRecord, read_record, stale_results
 from rigkit.capture.session import is_session, load_session
+from rigkit.core.files import read_npy
 from rigkit.core.safefs import check_regular, read_input, real_folder
 from rigkit.errors import InputError
 from rigkit.export.runinfo import RunInfo
@@ -170,11 +171,9 @@ def _maps(files: RunFiles, remake: str) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 def _npy(path: Path, dtype: type = np.float32, what: str = "float32 metres") -> np.ndarray:
     try:
-        array = np.load(path, mmap_mode="r")
+        array = read_npy(path)
     except FileNotFoundError:
         raise InputError(f"{path}: missing") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: not a NumPy array file ({exc})") from None
     if array.dtype != dtype:
         raise InputError(f"{path}: {array.dtype} values, expected {what}")
     return array

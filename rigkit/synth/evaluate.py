@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from rigkit.capture.results import RunFiles, session_comparisons
+from rigkit.core.files import read_npy
 from rigkit.core.outputs import write_outputs
 from rigkit.core.tables import render_table
 from rigkit.errors import InputError
@@ -248,11 +249,15 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None,
         where = f" (looked for {', '.join(map(str, looked))})" if looked else ""
         return failed_metrics(name, f"no depth estimate{where}")
     try:  # its header first: a map of another size is not read (depth_metrics says so)
-        est = np.load(estimate_path, mmap_mode="r")
-    except (OSError, ValueError) as exc:
-        return failed_metrics(name, f"unreadable estimate {estimate_path}: {exc}")
-    if not isinstance(est, np.ndarray) or est.ndim != 2:
-        return failed_metrics(name, f"unreadable estimate {estimate_path}: not an (H, W) map")
+        est = read_npy(estimate_path)
+    except (OSError, InputError) as exc:
+        return failed_metrics(name, f"unreadable estimate: {exc}")
+    if est.ndim != 2 or not np.issubdtype(est.dtype, np.floating):
+        return failed_metrics(name, f"unreadable estimate {estimate_path}: not an (H, W) "
+                              f"map of real depths ({est.dtype}, {est.ndim} axes)")
+    if est.shape == truth.depth("left").shape and not np.any(np.isfinite(est) & (est > 0)):
+        return failed_metrics(name, f"estimate {estimate_path}: no positive finite depth "
+                              "in it (a depth map of NaN, inf or negative values)")
     depth, judged, flat = truth.depth("left"), visible_in_right(truth), truth.flat()
     if flat is not None:
         judged &= ~flat

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigkit.core.files import write_npy, write_png, write_text
+from rigkit.core.files import read_npy, write_npy, write_png, write_text
 from rigkit.core.outputs import LEDGER, check_outputs, record_outputs
 from rigkit.core.yamlfile import dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
@@ -233,12 +233,10 @@ def _truth(path: Path, kind: type, ndim: int) -> np.ndarray:
     no larger than the largest frame; InputError naming the file where it is none (said
     from its header, before it is read)."""
     try:
-        array = np.load(path, mmap_mode="r")
+        array = read_npy(path)
     except FileNotFoundError:
         raise InputError(f"{path}: missing ground truth") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: not a NumPy array file ({exc})") from None
-    if not isinstance(array, np.ndarray) or array.ndim != ndim \
+    if array.ndim != ndim \
             or not np.issubdtype(array.dtype, kind):
         raise InputError(f"{path}: not ground truth as rigkit synth writes it "
                          f"({getattr(array, 'dtype', '?')}, {getattr(array, 'ndim', '?')} axes)")

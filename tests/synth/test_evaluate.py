@@ -61,6 +61,24 @@ def test_missing_estimate_is_a_failure_that_says_where_it_looked(scene_dir, tmp_
     assert "failures: 1 of 1" in format_table(rows)
 
 
+@pytest.mark.parametrize("write, said", [
+    (lambda path, shape: path.write_text("junk\n"), "not a NumPy array file (.npy)"),
+    (lambda path, shape: np.save(path, np.ones(shape, np.complex128)),
+     "not an (H, W) map of real depths (complex128"),
+    (lambda path, shape: np.save(path, -np.ones(shape, np.float32)), "no positive finite depth"),
+    (lambda path, shape: np.save(path, np.full(shape, np.inf, np.float32)),
+     "no positive finite depth"),
+])
+def test_an_estimate_that_is_no_depth_map_is_a_failure(scene_dir, truth, tmp_path, write,
+                                                       said) -> None:
+    """Before: a complex, an all-negative or an all-inf map was scored 0.00 % with no
+    failure counted, and a text file was met with NumPy's advice to load it as a pickle."""
+    write(tmp_path / f"{scene_dir.name}.npy", truth.depth("left").shape)
+    rows = evaluate_scenes([scene_dir], tmp_path)
+    assert rows[0].failed and said in rows[0].reason, rows[0].reason
+    assert "pickle" not in rows[0].reason
+
+
 def test_the_estimate_rigkit_depth_help_writes_is_found(scene_dir, truth, tmp_path) -> None:
     """`rigkit depth ... --out out/scene-depth.npy` then `rigkit eval out/scene
     --depth-dir out`, as `rigkit depth --help` shows (issue 37)."""
