@@ -46,6 +46,7 @@ from rigkit.capture.session import (
 from rigkit.core.files import fd_sha256, file_sha256, recover_folder
 from rigkit.core.safefs import (
     fd_path,
+    kind_of,
     open_folder,
     open_input,
     open_regular,
@@ -467,7 +468,10 @@ def frame_problems(session: Session) -> list[str]:
                 problems.append(f"{position} frame {frame.file} is a link to "
                                 f"{path.resolve()}, outside the session")
             elif not path.is_file():
-                problems.append(f"{position} frame {frame.file} is missing")
+                there = path.lstat().st_mode if path.exists() else None
+                problems.append(f"{position} frame {frame.file} is "
+                                + ("missing" if there is None else
+                                   f"{kind_of(there)}, not the frame file"))
             elif file_sha256(path) != frame.sha256:
                 problems.append(
                     f"{position} frame {frame.file} no longer matches the hash recorded at "
@@ -476,7 +480,8 @@ def frame_problems(session: Session) -> list[str]:
             elif frame.size_px != size:
                 problems.append(
                     f"{position} frame {frame.file} is {frame.size_px[0]}x{frame.size_px[1]}"
-                    f" px, the rig's image size {size[0]}x{size[1]} px"
+                    f" px as session.yaml records it, the rig's image size {size[0]}x"
+                    f"{size[1]} px"
                 )
     for target in session.targets:
         try:

@@ -47,7 +47,7 @@ from rigkit.capture.tripod import (
     tripod_to_data,
 )
 from rigkit.core.files import append_whole, replaced_entry, write_text
-from rigkit.core.safefs import refusal
+from rigkit.core.safefs import kind_of, refusal
 from rigkit.core.yamlfile import KeyPath, dump_yaml, read_strict_yaml
 from rigkit.errors import InputError
 from rigkit.rangefinder.framing import MIN_RANGE_M
@@ -87,7 +87,9 @@ def load_session(path: str | Path) -> Session:
     lines in an error), as is a ``name`` that is no plain name."""
     path = Path(path)
     if not path.is_dir():
-        raise InputError(f"{path}: no such session folder")
+        there = path.lstat().st_mode if os.path.lexists(path) else None
+        raise InputError(f"{path}: no such session folder" if there is None else
+                         f"{path}: {kind_of(there)}, not a session folder")
     yaml_path = path / SESSION_FILE
     if yaml_path.is_symlink():
         raise refusal(yaml_path, "a symbolic link")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from rigkit.commands import finite, output_file
@@ -75,5 +76,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _frames(text: str) -> list[Path]:
-    """One file, or the frames of a burst separated by commas."""
+    """One file, or the frames of a burst separated by commas; a file whose own name
+    holds a comma is that one file (``a,b.png``: before, two missing files ``a`` and
+    ``b.png``)."""
+    if "," not in text or os.path.lexists(text):
+        return [Path(text)]
     return [Path(p) for p in text.split(",") if p]

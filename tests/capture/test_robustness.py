@@ -273,7 +273,8 @@ def test_hand_edited_sizes_windows_and_bursts_are_refused(synth_session: Path,
 
     problems = "; ".join(frame_problems(load_session(copy_session(synth_session, tmp_path,
                                                                   edit=edit))))
-    assert "right frame raw/right.png is 640x480 px, the rig's image size 960x720" in problems
+    assert ("right frame raw/right.png is 640x480 px as session.yaml records it, the rig's "
+            "image size 960x720") in problems
     assert "window 100001 px is larger than the 960x720 image" in problems
     assert "raw/left.png is the same file as raw/left.png, given twice in the burst" in problems
 
@@ -363,3 +364,22 @@ def test_implausible_typed_ranges_never_become_readings(tmp_path: Path, typed: s
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "range" in err
     assert load_session(session.path).targets == ()
+
+
+def test_a_frame_replaced_by_a_fifo_or_a_folder_is_said_as_such(synth_session: Path,
+                                                                 tmp_path: Path) -> None:
+    """Before: both were "missing", and a FIFO given as a session "no such session
+    folder"."""
+    import os
+
+    session = copy_session(synth_session, tmp_path)
+    (session / "raw" / "back.png").unlink()
+    os.mkfifo(session / "raw" / "back.png")
+    (session / "raw" / "right.png").unlink()
+    (session / "raw" / "right.png").mkdir()
+    problems = "; ".join(frame_problems(load_session(session)))
+    assert "back frame raw/back.png is a FIFO, not the frame file" in problems
+    assert "right frame raw/right.png is a folder, not the frame file" in problems
+    os.mkfifo(tmp_path / "fifo")
+    with pytest.raises(InputError, match="fifo: a FIFO, not a session folder"):
+        load_session(tmp_path / "fifo")

@@ -319,3 +319,15 @@ def test_a_focal_length_no_telephoto_has_is_named(scene_dir, tmp_path, capsys, f
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and f"field of view of {fov} deg" in err, err
     assert not (tmp_path / "d.npy").exists()
+
+
+def test_a_frame_whose_name_holds_a_comma_is_one_frame(tmp_path, monkeypatch) -> None:
+    """Before: 'a,b.png' was split as a burst of two missing files, and the error named
+    a fragment of the name the user gave."""
+    from rigkit.commands.depth import _frames
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a,b.png").write_bytes(b"")
+    assert _frames("a,b.png") == [Path("a,b.png")]
+    assert _frames("x.png,y.png") == [Path("x.png"), Path("y.png")]  # a burst
+    assert _frames("x.png") == [Path("x.png")]
