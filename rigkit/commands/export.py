@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count, finite, output_folder
+from rigkit.commands import count, finite, output_folder, within
 from rigkit.export.defaults import VERTICAL_ELLIPSOIDAL, VERTICAL_RECORDED
 
 EXAMPLE = """examples:
@@ -66,7 +66,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cell", type=finite, metavar="SIZE",
                    help="the DSM's cell size in the CRS's unit (default: from the points' "
                    "spacing)")
-    p.add_argument("--max-residual-deg", type=finite,
+    p.add_argument("--max-residual-deg", type=within(0.0, 180.0, "degrees", low_open=True),
                    help="largest angle a target's laser direction may miss its pixel by "
                    "after the orientation fit (default 1.5)")
     p.add_argument("--quiet", action="store_true", help="no progress output")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 
 from rigkit.core.progress import Progress
-from rigkit.errors import InputError
 from rigkit.export import MapRequest, export_path, parse_formats
 from rigkit.export.georef import MAX_RESIDUAL_DEG
 from rigkit.export.run import Exported
@@ -14,8 +13,6 @@ from rigkit.export.run import Exported
 def run(args: argparse.Namespace) -> int:
     formats = parse_formats(args.format)
     residual = MAX_RESIDUAL_DEG if args.max_residual_deg is None else args.max_residual_deg
-    if not 0 < residual <= 180:
-        raise InputError(f"--max-residual-deg {residual:g}: expected more than 0 degrees")
     task = args.source.name or str(args.source)
     with Progress("export", [task], quiet=args.quiet) as progress:
         done = export_path(args.source, args.out, formats, step=args.step, frame=args.frame,

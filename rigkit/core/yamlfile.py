@@ -255,6 +255,9 @@ class KeyPath:
         """A finite real number (not a boolean, not a string with a unit in it)."""
         if isinstance(value, bool) or not isinstance(value, int | float):
             hint = " (the unit is in the key name; write the number only)"
+            if isinstance(value, str) and _exponent_text(value):
+                hint = (f" (YAML reads {value} as text: write its mantissa with a point, "
+                        f"e.g. {_with_point(value)})")
             raise self.error(f"must be a number in {unit}{hint}", value)
         if not math.isfinite(value):
             raise self.error(f"must be a finite number in {unit}", value)
@@ -302,3 +305,18 @@ class KeyPath:
         if not isinstance(value, str):
             raise self.error("must be text", value)
         return value.strip() if strip else value
+
+
+def _exponent_text(text: str) -> bool:
+    """Whether ``text`` is a number in exponent form YAML 1.1 takes for text (``1e7``,
+    ``5E-3``: no point in the mantissa)."""
+    mantissa, _, exponent = text.strip().lower().partition("e")
+    return bool(exponent) and "." not in mantissa and \
+        mantissa.lstrip("+-").isdigit() and exponent.lstrip("+-").isdigit()
+
+
+def _with_point(text: str) -> str:
+    """``text`` (:func:`_exponent_text`) as YAML reads a number: ``1e7`` -> ``1.0e+7``."""
+    mantissa, _, exponent = text.strip().lower().partition("e")
+    sign = "" if exponent[:1] in "+-" else "+"
+    return f"{mantissa}.0e{sign}{exponent}"
