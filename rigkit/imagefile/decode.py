@@ -95,10 +95,15 @@ def _jpeg_cut_short(data: bytes) -> bool:
         return False
 
 
+_OPENCV_LOG = re.compile(r"^\s*\[\s*[A-Z]+:\d+@[\d.]+\]\s+(global\s+)?\S+:\d+\s+\S+\s+")
+"""The place OpenCV's log puts before its message ("[ WARN:0@0.108] global
+grfmt_png.cpp:793 readFromStreamOrBuffer "): not for the user."""
+
+
 def check_decoder_output(path: Path, printed: str) -> None:
     """InputError when what a decoder printed while reading ``path`` says the file ends
     early or is damaged: the picture it returned is partly made up."""
-    complaint = next((line.strip() for line in printed.splitlines()
+    complaint = next((_OPENCV_LOG.sub("", line).strip() for line in printed.splitlines()
                       if _CUT_SHORT.search(line)), None)
     if complaint is not None:
         raise InputError(

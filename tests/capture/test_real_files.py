@@ -196,6 +196,17 @@ def test_a_jpeg_cut_short_is_refused(tmp_path: Path, capfd) -> None:
     assert capfd.readouterr().err == ""  # libjpeg's complaint was read, not printed
 
 
+def test_a_complaint_is_quoted_without_opencvs_log_prefix(tmp_path: Path) -> None:
+    """Before: the message quoted OpenCV's log as it is ('[ WARN:0@0.108] global
+    grfmt_png.cpp:793 readFromStreamOrBuffer PNG input buffer ...')."""
+    from rigkit.imagefile.decode import check_decoder_output
+
+    printed = ("[ WARN:0@0.108] global grfmt_png.cpp:793 readFromStreamOrBuffer PNG "
+               "input buffer is incomplete\n")
+    with pytest.raises(InputError, match="decoder reports 'PNG input buffer is incomplete'"):
+        check_decoder_output(tmp_path / "x.png", printed)
+
+
 def test_grey_rows_at_the_bottom_are_a_cut_even_without_a_complaint() -> None:
     grey = texture((320, 240)) / 255
     grey[200:] = 0.5  # what a decoder fills in after the data ends
