@@ -141,7 +141,7 @@ def _append_to(path: Path) -> TextIO:
     """``path`` opened to append lines (:class:`rigkit.core.outputs.OutputLog`); a last
     line cut short (a log whose writer was stopped mid-line) is ended first, so the next
     reading is a line of its own."""
-    output = OutputLog(path, "--output")
+    output = OutputLog(path, "--output", "readings")
     end = os.fstat(output.fileno()).st_size
     if end > 0 and os.pread(output.fileno(), 1, end - 1) != b"\n":
         output.write("\n")

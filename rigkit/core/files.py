@@ -330,8 +330,9 @@ def staged_files(folder: Path, check: Callable[[Path], None] | None = None
     folder = Path(folder)
     _remove_stale_staging(folder)
     with tempfile.TemporaryDirectory(dir=folder, prefix=f"{STAGING_PREFIX}{os.getpid()}-") as tmp:
+        (Path(tmp) / STAGING_MARK).write_bytes(b"")
         yield Path(tmp)
-        staged = sorted(Path(tmp).iterdir())
+        staged = sorted(p for p in Path(tmp).iterdir() if p.name != STAGING_MARK)
         for path in staged:
             _fsync_file(path)
             if check is not None:
@@ -343,6 +344,9 @@ def staged_files(folder: Path, check: Callable[[Path], None] | None = None
 
 STAGING_PREFIX = ".rigkit-"
 """Staging folders of :func:`staged_files` are named ``.rigkit-<pid>-<random>``."""
+STAGING_MARK = ".rigkit-staging"
+"""The empty file :func:`staged_files` puts in each staging folder first: a folder of
+that name without it is someone else's, and is never removed."""
 
 
 def _remove_stale_staging(folder: Path) -> None:
@@ -353,6 +357,9 @@ def _remove_stale_staging(folder: Path) -> None:
         pid = stale.name[len(STAGING_PREFIX):].split("-", 1)[0]
         if not pid.isdigit() or _alive(int(pid)) or stale.is_symlink() or not stale.is_dir():
             continue
+        mark = stale / STAGING_MARK
+        if mark.is_symlink() or not mark.is_file():  # a folder of someone's: kept (a user's
+            continue  # ".rigkit-99999-backup" was removed with what it held)
         shutil.rmtree(stale, ignore_errors=True)
 
 

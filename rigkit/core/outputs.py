@@ -65,8 +65,11 @@ PRODUCTS = {
     "profile": "a rig profile that rigkit rig calibrate wrote",
     "eval": "an evaluation table of rigkit eval",
     "experiments": "an output of rigkit experiments",
-    "log": "a log that rigkit appends to",
+    "readings": "a log of laser readings that rigkit rangefinder log appends to",
+    "raw-log": "a log of serial traffic that --raw-log appends to",
 }
+LOGS = frozenset({"readings", "raw-log"})
+"""The products rigkit appends to (:class:`OutputLog`), each only to its own kind."""
 """What may have written a file recorded in a ledger (its ``by``), as the refusals name
 it; a command replaces only its own product's files."""
 
@@ -126,7 +129,7 @@ def check_output_file(path: Path, what: str, product: str | None = None) -> None
         raise InputError(f"{what}: {path} is {kind_of(info.st_mode)}, not a file rigkit "
                          "may write; give another name")
     entry = _ledger(path.parent).get(path.name)
-    log = entry is not None and entry.get("by") == "log" and entry.get("inode") == info.st_ino
+    log = entry is not None and entry.get("by") in LOGS and entry.get("inode") == info.st_ino
     if not log and not _matches(entry, info):
         raise InputError(f"{what}: {path} exists and was not written by rigkit (or was "
                          f"changed since; see {LEDGER} in its folder): rigkit writes over "
@@ -151,10 +154,10 @@ def check_output_folder(path: Path, what: str) -> None:
         raise InputError(f"{what}: {path} is {kind_of(info.st_mode)}, not a folder")
 
 
-def check_output_log(path: Path, what: str) -> None:
+def check_output_log(path: Path, what: str, product: str | None = None) -> None:
     """InputError naming ``what`` unless rigkit may append to ``path``: a new file, or a
     regular file it created there as a log (its inode, size and first bytes in the
-    ledger: :func:`_matches`)."""
+    ledger: :func:`_matches`), of ``product`` (:data:`LOGS`; None: of any)."""
     path = Path(path)
     check_place(path, what)
     info = _lstat(path, what)
@@ -169,13 +172,14 @@ def check_output_log(path: Path, what: str) -> None:
         fd = None
     entry = _ledger(path.parent).get(path.name)
     try:
-        ours = _is_log(entry, info, fd)
+        ours, a_log = _is_log(entry, info, fd, product), _is_log(entry, info, fd)
     finally:
         if fd is not None:
             os.close(fd)
-    if not ours and entry is not None and _matches(entry, info):
-        raise InputError(f"{what}: {path} is {_described(entry)}, no log: rigkit appends "
-                         "only to a log it started; give a new file")
+    if not ours and (a_log or (entry is not None and _matches(entry, info))):
+        raise InputError(f"{what}: {path} is {_described(entry)}, not this option's log: "
+                         "rigkit appends only to a log of its own kind that it started; "
+                         "give a new file")
     if not ours:
         raise InputError(f"{what}: {path} exists and is no log rigkit started (see "
                          f"{LEDGER} in its folder): rigkit appends to no file of yours; "
@@ -239,19 +243,19 @@ class OutputLog(io.TextIOWrapper):
     Opened for reading too (``O_RDWR | O_APPEND``: a caller may look at its last byte
     through ``fileno()``); its state is recorded again when it is closed."""
 
-    def __init__(self, path: Path, what: str, encoding: str = "utf-8") -> None:
-        self.output_path = Path(path)
-        fd = _open_log(self.output_path, what)
+    def __init__(self, path: Path, what: str, product: str, encoding: str = "utf-8") -> None:
+        self.output_path, self.product = Path(path), product
+        fd = _open_log(self.output_path, what, product)
         super().__init__(os.fdopen(fd, "ab"), encoding=encoding)
 
     def close(self) -> None:
         if not self.closed:
             super().close()
-            record_outputs(self.output_path.parent, [self.output_path.name], "log")
+            record_outputs(self.output_path.parent, [self.output_path.name], self.product)
 
 
-def _open_log(path: Path, what: str) -> int:
-    check_output_log(path, what)
+def _open_log(path: Path, what: str, product: str) -> int:
+    check_output_log(path, what, product)
     flags = os.O_RDWR | os.O_APPEND
     try:
         fd = open_regular(path, flags | os.O_CREAT | os.O_EXCL)
@@ -260,25 +264,52 @@ def _open_log(path: Path, what: str) -> int:
             fd = open_regular(path, flags)
         except InputError as exc:
             raise InputError(f"{what}: {exc}") from None
-        if not _is_log(_ledger(path.parent).get(path.name), os.fstat(fd), fd):
+        if not _is_log(_ledger(path.parent).get(path.name), os.fstat(fd), fd, product):
             os.close(fd)
-            check_output_log(path, what)  # says why
+            check_output_log(path, what, product)  # says why
             raise InputError(f"{what}: {path} changed while it was opened") from None
         return fd
     except InputError as exc:
         raise InputError(f"{what}: {exc}") from None
     except OSError as exc:
         raise InputError(f"{what}: cannot create {path} ({exc.strerror})") from None
-    record_outputs(path.parent, [path.name], "log")
+    record_outputs(path.parent, [path.name], product)
     return fd
 
 
 def record_outputs(folder: Path, names: Iterable[str], product: str) -> None:
     """Record ``names`` (regular files in ``folder``, just written) in the folder's
-    ledger as ``product``'s (:data:`PRODUCTS`); a ``"log"`` is a file rigkit appends to,
-    known by its inode and first bytes. Best effort: a ledger that cannot be written
-    leaves those files unclaimed, which only makes a later write over them refuse."""
+    ledger as ``product``'s (:data:`PRODUCTS`); a log (:data:`LOGS`) is a file rigkit
+    appends to, known by its inode and first bytes. Read, changed and written under a
+    lock on the folder, so that commands ending at once into one folder each keep their
+    entries (16 runs side by side lost 10 of 80 without it). Best effort: a ledger that
+    cannot be written leaves those files unclaimed, which only makes a later write over
+    them refuse."""
     folder = Path(folder)
+    with _folder_lock(folder):
+        _record(folder, names, product)
+
+
+@contextlib.contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """An exclusive lock on ``folder`` itself (flock on its descriptor) for as long as
+    the block runs; none where the folder cannot be opened or locked."""
+    import fcntl
+
+    try:
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    except OSError:
+        yield
+        return
+    try:
+        with contextlib.suppress(OSError):
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # the lock goes with it
+
+
+def _record(folder: Path, names: Iterable[str], product: str) -> None:
     ledger = _ledger(folder)
     for name in names:
         try:
@@ -288,7 +319,7 @@ def record_outputs(folder: Path, names: Iterable[str], product: str) -> None:
         if not stat.S_ISREG(info.st_mode):
             continue
         ledger[name] = {"inode": info.st_ino, "size": info.st_size, "by": product}
-        if product == "log":
+        if product in LOGS:
             ledger[name]["head"] = _head(folder / name, info.st_size)
         else:
             ledger[name]["mtime_ns"] = info.st_mtime_ns
@@ -317,11 +348,13 @@ def _described(entry: Mapping[str, Any] | None) -> str:
     return PRODUCTS.get(str((entry or {}).get("by")), "a file rigkit wrote")
 
 
-def _is_log(entry: Mapping[str, Any] | None, info: os.stat_result, fd: int | None) -> bool:
-    """Whether ``entry`` records a log (:func:`record_outputs`) and the file ``info``
-    and ``fd`` describe is still it (:func:`_matches`): a file rigkit wrote whole is no
-    log to append to."""
-    return entry is not None and entry.get("by") == "log" and _matches(entry, info, fd)
+def _is_log(entry: Mapping[str, Any] | None, info: os.stat_result, fd: int | None,
+            product: str | None = None) -> bool:
+    """Whether ``entry`` records a log (:func:`record_outputs`) of ``product`` (None: of
+    any kind) and the file ``info`` and ``fd`` describe is still it (:func:`_matches`): a
+    file rigkit wrote whole is no log to append to, nor is another option's log."""
+    by = entry.get("by") if entry is not None else None
+    return by in LOGS and (product is None or by == product) and _matches(entry, info, fd)
 
 
 def _matches(entry: Mapping[str, Any] | None, info: os.stat_result,

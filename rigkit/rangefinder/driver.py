@@ -411,7 +411,7 @@ def open_rangefinder(
         raise InputError(f"stop bits must be 1, 1.5 or 2, got {stopbits}")
     log: TextIO | None = None
     if log_path is not None:  # never a file rigkit did not start, a link or a FIFO
-        log = OutputLog(Path(log_path), "--raw-log", encoding="ascii")
+        log = OutputLog(Path(log_path), "--raw-log", "raw-log", encoding="ascii")
     port: Any
     if isinstance(url, str):
         name = url

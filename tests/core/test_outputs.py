@@ -17,6 +17,7 @@ from rigkit.core.outputs import (
     check_output_file,
     check_output_folder,
     check_output_log,
+    record_outputs,
     session_part,
     staged_outputs,
     write_outputs,
@@ -74,19 +75,43 @@ def test_a_command_replaces_only_its_own_products_and_appends_only_to_logs(
         with pytest.raises(InputError, match="left.png is part of a scene that rigkit "
                                              "synth rendered .* not this command's"):
             check_output_file(tmp_path / "left.png", "--out", product)
-    for opened in (lambda: OutputLog(tmp_path / "left.png", "--raw-log"),
+    for opened in (lambda: OutputLog(tmp_path / "left.png", "--raw-log", "raw-log"),
                    lambda: check_output_log(tmp_path / "left.png", "--raw-log")):
-        with pytest.raises(InputError, match="left.png is part of a scene .*, no log: rigkit "
-                                             "appends only to a log it started"):
+        with pytest.raises(InputError, match="left.png is part of a scene .*, not this "
+                                             "option's log: rigkit appends only to a log"):
             opened()
     assert (tmp_path / "left.png").read_bytes() == b"frame"
-    with OutputLog(tmp_path / "serial.log", "--raw-log") as log:
+    serial = tmp_path / "serial.log"
+    with OutputLog(serial, "--raw-log", "raw-log") as log:
         log.write("$PLTIT,HV,300.0,M*00\n")
-    with pytest.raises(InputError, match="serial.log is a log that rigkit appends to"):
-        check_output_file(tmp_path / "serial.log", "--out")
-    with OutputLog(tmp_path / "serial.log", "--raw-log") as log:  # a log goes on growing
+    with pytest.raises(InputError, match="serial.log is a log of serial traffic"):
+        check_output_file(serial, "--out")
+    with pytest.raises(InputError, match="serial.log is a log of serial traffic .* not this "
+                                         "option's log"):  # readings into a raw log: never
+        OutputLog(serial, "--output", "readings")
+    with OutputLog(serial, "--raw-log", "raw-log") as log:  # a log goes on growing
         log.write("$PLTIT,HV,301.0,M*00\n")
-    assert (tmp_path / "serial.log").read_text().count("PLTIT") == 2
+    assert serial.read_text().count("PLTIT") == 2
+
+
+def test_commands_ending_at_once_into_one_folder_keep_every_entry(tmp_path: Path) -> None:
+    """Before: the ledger was read, changed and written back unlocked, and 16 runs of
+    rigkit depth side by side into one folder kept 70 of their 80 entries (their files
+    then refused to the next run)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    names = [[f"p{p}-{n}.txt" for n in range(40)] for p in range(4)]
+    for name in (n for batch in names for n in batch):
+        (tmp_path / name).write_text("x\n")
+    with ProcessPoolExecutor(4) as pool:
+        list(pool.map(_record_each, [tmp_path] * 4, names))
+    ledger = json.loads((tmp_path / LEDGER).read_text())["files"]
+    assert len(ledger) == 160
+
+
+def _record_each(folder: Path, names: list[str]) -> None:
+    for name in names:
+        record_outputs(folder, [name], "report")
 
 
 def test_a_damaged_or_linked_ledger_claims_nothing(tmp_path: Path) -> None:
@@ -136,16 +161,16 @@ def test_a_log_is_rigkits_while_it_grows_and_no_file_that_takes_its_place_is(
     tmp_path: Path,
 ) -> None:
     log = tmp_path / "laser.jsonl"
-    with OutputLog(log, "--output") as output:
+    with OutputLog(log, "--output", "readings") as output:
         output.write('{"slope_distance_m": 300.0}\n')
-    with OutputLog(log, "--output") as output:  # its own, appended to since
+    with OutputLog(log, "--output", "readings") as output:  # its own, appended to since
         output.write('{"slope_distance_m": 301.0}\n')
     with log.open("a") as torn:  # a writer stopped mid-line: still the log it was
         torn.write('{"slope')
-    with OutputLog(log, "--output") as output:
+    with OutputLog(log, "--output", "readings") as output:
         output.write("\n")
     log.unlink()
     log.write_text("someone else's notes\n")  # a new file at its name (often its inode)
     with pytest.raises(InputError, match="is no log rigkit started"):
-        OutputLog(log, "--output")
+        OutputLog(log, "--output", "readings")
     assert log.read_text() == "someone else's notes\n"
