@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rigkit.commands import count, finite, output_file, within
+from rigkit.commands import count, output_file, within
 from rigkit.rig.defaults import (
     CRITICAL_W,
     DISPARITY_ERROR_PX,
@@ -20,6 +20,8 @@ MAX_BUDGET_PX = 1000.0
 """The largest error, px, a budget takes (a disparity, the shimmer, the offset)."""
 MAX_CORRELATION_PX = 1e6
 """The longest shimmer correlation a budget takes, px."""
+MAX_LASER_SIGMA_M = 100.0
+"""The largest one-sigma error of a laser reading a calibration takes, m."""
 
 _RIG_EPILOG = """\
 example:
@@ -153,7 +155,8 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     calibrate.add_argument("sessions", metavar="SESSION", type=Path, nargs="+",
                            help="processed session folders of one rig")
     calibrate.add_argument("--out", type=output_file, required=True, help="the profile to write")
-    calibrate.add_argument("--laser-sigma-m", type=_positive_float, metavar="M",
+    calibrate.add_argument("--laser-sigma-m", type=within(0.0, MAX_LASER_SIGMA_M, "m",
+                                                          low_open=True), metavar="M",
                            help="one laser reading's one-sigma error, m (default "
                                 f"{LASER_ACCURACY_M:g})")
     calibrate.add_argument("--hold-out", action="append", default=[], metavar="TARGET",
@@ -169,24 +172,6 @@ def _register_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     calibrate.add_argument("--force", action="store_true",
                            help="replace --out, where it is a profile rigkit wrote")
     calibrate.set_defaults(runner="rigkit.commands.rig_run:run_calibrate")
-
-
-def _positive_float(text: str) -> float:
-    value = _float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    value = _float(text)
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
-    return value
-
-
-def _float(text: str) -> float:
-    return finite(text)
 
 
 _range_m = within(MIN_RANGE_M, MAX_RANGE_M, "m")
