@@ -30,7 +30,7 @@ from rigkit.tui.screens import PositionScreen, ProcessScreen, RigScreen, Targets
 from rigkit.tui.widgets import PixelView
 from tests.tui.conftest import SETTLE_S, opened, side, synchronous, text, wait_for, write_frame
 from tests.tui.test_flow import SIZE, take_position, take_the_left_frame, watching_app
-from tests.tui.test_resume import READING, app_on, framed
+from tests.tui.test_resume import READING, app_at, app_on, framed
 
 
 def readings_of(session: Path) -> dict[str, list[float]]:
@@ -82,9 +82,7 @@ async def test_fast_keys_never_crash_and_the_step_shown_is_the_one_resumed(demo:
         raise InputError(f"{path}: not run in this test")
 
     monkeypatch.setattr(process, "process_session", counted)
-    session = framed(demo, "fast")
-    set_field_step(session.path, "back")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "fast", "back")
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, PositionScreen), "the back step")
@@ -146,9 +144,7 @@ async def test_a_position_visited_again_shows_its_checks_without_checking_again(
 
     monkeypatch.setattr(field, "onsite_checks", counted)
     monkeypatch.setattr(rigkit.tui.app, "onsite_checks", counted, raising=False)  # 81dfff3's
-    session = framed(demo, "visits", reading=False)
-    set_field_step(session.path, "left")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "visits", "left", reading=False)
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await take_position(pilot, app, "left")
@@ -300,9 +296,7 @@ async def test_r_during_the_run_neither_cancels_it_nor_reports_it_busy(demo: Dem
         return run(path, run_id, progress=slowed)
 
     monkeypatch.setattr(process_screen, "process_session", slow)
-    session = framed(demo, "r-twice")
-    set_field_step(session.path, "targets")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "r-twice", "targets")
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
@@ -419,9 +413,7 @@ async def test_c_on_a_frame_the_watcher_is_taking_files_it_once_without_a_word(
 @synchronous
 async def test_a_reading_is_dropped_only_on_a_second_x(demo: Demo) -> None:
     """Before: ``x`` dropped a laser reading at one press while every other delete asked."""
-    session = framed(demo, "x-once")
-    set_field_step(session.path, "targets")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "x-once", "targets")
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
@@ -461,9 +453,7 @@ async def test_one_port_for_the_whole_run_never_in_use_by_ourselves(demo: Demo) 
 
 @synchronous
 async def test_a_deleted_targets_name_is_never_given_again(demo: Demo) -> None:
-    session = framed(demo, "names", reading=False)
-    set_field_step(session.path, "targets")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "names", "targets", reading=False)
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen)
@@ -479,9 +469,7 @@ async def test_a_deleted_targets_name_is_never_given_again(demo: Demo) -> None:
 async def test_a_typed_range_that_would_be_a_stray_is_asked_and_strays_are_marked(
         demo: Demo) -> None:
     """Before: 209 typed after 200.0 (4.5 %) was kept as "2 stray", neither marked."""
-    session = framed(demo, "stray")
-    set_field_step(session.path, "targets")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "stray", "targets")
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, TargetsScreen), "the targets")
@@ -560,9 +548,7 @@ async def test_ctrl_c_quits_as_the_key_bar_says_q_does(demo: Demo) -> None:
 @synchronous
 async def test_e_before_processing_says_press_r(demo: Demo) -> None:
     """Before: ``e`` before processing said to run a shell command."""
-    session = framed(demo, "e-first")
-    set_field_step(session.path, "process")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "e-first", "process")
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await wait_for(pilot, lambda: "not processed yet" in text(app, "#stage"), "the step")

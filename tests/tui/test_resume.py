@@ -41,13 +41,18 @@ def app_on(demo: Demo, session: Path, watch: Path | None = None) -> FieldApp:
                                 graphics=False, settle_s=SETTLE_S))
 
 
+def app_at(demo: Demo, name: str, step: str, reading: bool = True
+           ) -> tuple[Session, FieldApp]:
+    """A :func:`framed` session left at ``step``, and the app that will open it."""
+    session = set_field_step(framed(demo, name, reading).path, step)
+    return session, app_on(demo, session.path)
+
+
 @synchronous
 async def test_quit_while_retaking_the_right_burst_reopens_at_right(demo: Demo) -> None:
     """Before: a session whose positions all had frames and a target a reading reopened
     straight into processing, whatever step the operator had quit on."""
-    session = framed(demo, "retaking")
-    set_field_step(session.path, "right")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "retaking", "right")
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         assert "parallax" in await take_position(pilot, app, "right")
@@ -60,9 +65,7 @@ async def test_quit_while_retaking_the_right_burst_reopens_at_right(demo: Demo) 
 
 @synchronous
 async def test_reopened_at_processing_it_waits_to_be_asked(demo: Demo) -> None:
-    session = framed(demo, "at-process")
-    set_field_step(session.path, "process")
-    app = app_on(demo, session.path)
+    session, app = app_at(demo, "at-process", "process")
     async with app.run_test(size=SIZE) as pilot:
         await opened(pilot, app)
         await wait_for(pilot, lambda: isinstance(app.screen, ProcessScreen), "processing")
