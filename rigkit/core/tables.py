@@ -10,6 +10,7 @@ removed from every line.
 from __future__ import annotations
 
 import io
+import sys
 from collections.abc import Iterable, Sequence
 
 _RULES = ("    \n" "    \n" " -- \n" "    \n" " -- \n" " -- \n" "    \n" "    \n")
@@ -86,8 +87,6 @@ def warn(problems: Sequence[str], limit: int = WARNINGS_SHOWN) -> None:
     """Print ``problems`` to stderr as warnings, one line each and as many as ``limit``,
     then how many more there were: a log with 2,000 damaged rows says so in six lines,
     not 2,000."""
-    import sys
-
     for problem in problems[:limit]:
         print(f"warning: {visible(problem, lines=False)}", file=sys.stderr)
     if len(problems) > limit:

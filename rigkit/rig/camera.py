@@ -8,7 +8,6 @@ Errors name the file, the dotted key and the value (:class:`rigkit.core.yamlfile
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,7 +17,7 @@ from rigkit.core.yamlfile import KeyPath
 from rigkit.errors import InputError
 from rigkit.geometry import NO_DISTORTION, Distortion, distort
 from rigkit.rig.lensfun import LensfunProfile, lensfun_profile
-from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm
+from rigkit.rig.optics import focal_px_from_35mm_equivalent, focal_px_from_mm, fov_deg
 
 ASPECT_AGREEMENT = 0.01
 """``sensor_mm`` and ``resolution`` must have the same aspect ratio within 1 % (square pixels)."""
@@ -204,7 +203,7 @@ pipeline's arithmetic on it overflowed or made an offset of 40 image widths."""
 
 
 def _check_field_of_view(focal_px: float, width_px: int, key: KeyPath, given: float) -> None:
-    fov = math.degrees(2.0 * math.atan(width_px / (2.0 * focal_px)))
+    fov = fov_deg(focal_px, width_px)
     low, high = FOV_DEG
     if not low <= fov <= high:
         raise key.error(f"gives a field of view of {fov:.3g} deg across {width_px} px; "

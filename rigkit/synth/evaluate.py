@@ -255,10 +255,11 @@ def evaluate_scene(scene_dir: Path, estimate_path: Path | None,
     if est.ndim != 2 or not np.issubdtype(est.dtype, np.floating):
         return failed_metrics(name, f"unreadable estimate {estimate_path}: not an (H, W) "
                               f"map of real depths ({est.dtype}, {est.ndim} axes)")
-    if est.shape == truth.depth("left").shape and not np.any(np.isfinite(est) & (est > 0)):
+    depth = truth.depth("left")
+    if est.shape == depth.shape and not np.any(np.isfinite(est) & (est > 0)):
         return failed_metrics(name, f"estimate {estimate_path}: no positive finite depth "
                               "in it (a depth map of NaN, inf or negative values)")
-    depth, judged, flat = truth.depth("left"), visible_in_right(truth), truth.flat()
+    judged, flat = visible_in_right(truth), truth.flat()
     if flat is not None:
         judged &= ~flat
     metrics = depth_metrics(est, depth, judged, name, flat)
